@@ -1,0 +1,65 @@
+"""``emogesture corpus`` and ``emogesture prepare``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from emogesture.config import load_config
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "corpus",
+        help="generate the synthetic BEAT2-layout corpus (speech synthesis + procedural gestures)",
+        description="Write a synthetic corpus in the BEAT2 layout. Same seed, same bytes. "
+        "Re-running resumes an interrupted build; a complete corpus is left as it is.",
+    )
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--speakers", type=int, default=8, help="number of speakers (1-30, default 8)")
+    p.add_argument("--texts-per-emotion", type=int, default=4, help="texts per emotion (default 4)")
+    p.add_argument("--min-seconds", type=float, default=20.0, help="minimum take length in seconds (default 20)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--workers", type=int, default=2, help="parallel processes (default 2)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue or re-check an existing corpus in --out instead of refusing")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_corpus)
+
+    p = sub.add_parser(
+        "prepare",
+        help="cut a BEAT2-layout root into a memory-mappable windows cache",
+        description="Idempotent and resumable: re-running does nothing on a complete cache and "
+        "continues an interrupted one.",
+    )
+    p.add_argument("root", type=Path, help="BEAT2 root (smplxflame_30/, wave16k/, sem/, train_test_split.csv)")
+    p.add_argument("--out", required=True, type=Path, help="cache folder")
+    p.add_argument("--config", type=Path, help="YAML file of preparation settings")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a setting, e.g. --set hop_seconds=2.5 (repeatable)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_prepare)
+
+
+def run_corpus(args: argparse.Namespace) -> int:
+    from emogesture.data.synthetic import CorpusConfig, build_corpus
+
+    config = CorpusConfig(
+        speakers=args.speakers,
+        texts_per_emotion=args.texts_per_emotion,
+        min_take_seconds=args.min_seconds,
+        seed=args.seed,
+        workers=args.workers,
+    )
+    summary = build_corpus(args.out, config, progress=not args.quiet, resume=args.resume)
+    print(summary.format())
+    return 0
+
+
+def run_prepare(args: argparse.Namespace) -> int:
+    from emogesture.data.prepare import PrepareConfig, prepare
+
+    config = load_config(PrepareConfig, args.config, args.overrides)
+    result = prepare(args.root, args.out, config, progress=not args.quiet)
+    print(result.format())
+    return 0
