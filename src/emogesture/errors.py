@@ -24,3 +24,14 @@ class InputFileError(EmogestureError, ValueError):
 
 class ConfigError(EmogestureError, ValueError):
     """A configuration value or override is invalid."""
+
+
+class OutputExistsError(EmogestureError, FileExistsError):
+    """An output file already exists and overwriting was not asked for."""
+
+    def __init__(self, path: str | PathLike[str]) -> None:
+        self.path = str(path)
+        super().__init__(f"{self.path}: already exists (pass --overwrite to replace it)")
+
+    def __str__(self) -> str:
+        return str(self.args[0])

@@ -136,7 +136,7 @@ def process_take(root: Path, take: str, config: PrepareConfig) -> dict[str, np.n
     return {"fbank": fbank, "motion": motion.astype(np.float32), "sem": sem}
 
 
-def window_starts(seconds: float, window: float, hop: float) -> list[float]:
+def full_window_starts(seconds: float, window: float, hop: float) -> list[float]:
     """Start times of full windows inside ``seconds``, every ``hop`` from 0."""
     n = int(np.floor((seconds - window) / hop + 1e-9)) + 1 if seconds >= window else 0
     return [round(i * hop, 6) for i in range(max(n, 0))]
@@ -184,7 +184,7 @@ def _assemble_split(
     for take in takes:
         with np.load(take_dir / f"{take}.npz") as z:
             seconds = min(z["fbank"].shape[0] / FBANK_RATE, z["motion"].shape[0] / config.fps)
-        rows += [(take, s) for s in window_starts(seconds, config.window_seconds, hop)]
+        rows += [(take, s) for s in full_window_starts(seconds, config.window_seconds, hop)]
     split_dir = out / "tmp_split"
     if split_dir.exists():
         shutil.rmtree(split_dir)

@@ -1,0 +1,170 @@
+"""Reading speech audio (SPEC §1): any libsndfile format, detected by content; ffmpeg as the fallback.
+
+``load_audio`` returns a float32 mono waveform at 16 kHz with its mean removed. The container/codec is
+detected from the file's bytes, never from its name (BEAT ships 32-bit float WAV and MP3 data named
+``.wav``). libsndfile (through soundfile) is tried first; if it cannot open the file and an ``ffmpeg`` /
+``ffprobe`` binary is on ``PATH``, the file is decoded by ffmpeg to raw float32 at its native rate, and the
+channel mix-down and resampling are done here as for every other file.
+
+Every failure is an :class:`~emogesture.errors.InputFileError` whose one-line message names the file.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+from scipy.signal import resample_poly
+
+from emogesture.errors import InputFileError
+
+__all__ = ["TARGET_SAMPLE_RATE", "load_audio", "check_speech", "resample"]
+
+TARGET_SAMPLE_RATE = 16000
+_SILENCE_PEAK = 1e-4
+_SILENCE_RMS = 1e-5
+
+
+def _one_line(text: str, limit: int = 200, strip_prefix: str = "") -> str:
+    lines = [ln.strip() for ln in str(text).splitlines() if ln.strip()]
+    line = lines[-1] if lines else "unknown error"
+    if strip_prefix and line.startswith(strip_prefix):
+        line = line[len(strip_prefix):].lstrip(": ") or line
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+def _read_soundfile(path: Path) -> tuple[np.ndarray, int]:
+    data, sr = sf.read(str(path), dtype="float32", always_2d=True)
+    return data, int(sr)
+
+
+def _read_ffmpeg(path: Path, soundfile_error: str) -> tuple[np.ndarray, int]:
+    ffmpeg, ffprobe = shutil.which("ffmpeg"), shutil.which("ffprobe")
+    if ffmpeg is None or ffprobe is None:
+        raise InputFileError(
+            path, f"cannot decode audio: not a format libsndfile reads, or corrupt ({soundfile_error}); "
+            "ffmpeg is not installed to try other formats"
+        )
+    url = f"file:{path}"  # 'file:' so names starting with '-' or holding ':' are taken literally
+    probe = subprocess.run(
+        [ffprobe, "-v", "error", "-select_streams", "a:0", "-show_entries", "stream=sample_rate,channels",
+         "-of", "json", url],
+        capture_output=True, stdin=subprocess.DEVNULL, check=False,
+    )
+    streams = []
+    if probe.returncode == 0:
+        try:
+            streams = json.loads(probe.stdout.decode("utf-8", "replace") or "{}").get("streams", [])
+        except json.JSONDecodeError:
+            streams = []
+    if not streams:
+        detail = (_one_line(probe.stderr.decode("utf-8", "replace"), strip_prefix=url)
+                  if probe.stderr.strip() else "no audio stream")
+        raise InputFileError(
+            path, f"cannot decode audio: not a recognised audio format, or corrupt (libsndfile: {soundfile_error}; "
+            f"ffmpeg: {detail})"
+        )
+    try:
+        sr = int(streams[0]["sample_rate"])
+        channels = int(streams[0]["channels"])
+    except (KeyError, TypeError, ValueError):
+        raise InputFileError(path, "cannot decode audio: ffprobe reports no sample rate / channel count") from None
+    if sr <= 0 or channels <= 0:
+        raise InputFileError(path, f"cannot decode audio: bad stream parameters ({sr} Hz, {channels} channels)")
+    dec = subprocess.run(
+        [ffmpeg, "-nostdin", "-v", "error", "-i", url, "-map", "0:a:0", "-vn", "-f", "f32le",
+         "-acodec", "pcm_f32le", "-ac", str(channels), "-ar", str(sr), "pipe:1"],
+        capture_output=True, stdin=subprocess.DEVNULL, check=False,
+    )
+    if dec.returncode != 0:
+        detail = _one_line(dec.stderr.decode("utf-8", "replace"), strip_prefix=url)
+        raise InputFileError(path, f"cannot decode audio with ffmpeg ({detail})")
+    raw = dec.stdout[: len(dec.stdout) // (4 * channels) * 4 * channels]
+    data = np.frombuffer(raw, dtype="<f4").astype(np.float32).reshape(-1, channels)
+    return data, sr
+
+
+def resample(waveform: np.ndarray, orig_sr: int, target_sr: int) -> np.ndarray:
+    """Polyphase resampling along the last axis with the exact ratio ``target/gcd : orig/gcd`` (float64 out)."""
+    x = np.asarray(waveform, dtype=np.float64)
+    if orig_sr == target_sr:
+        return x
+    g = math.gcd(int(orig_sr), int(target_sr))
+    return resample_poly(x, int(target_sr) // g, int(orig_sr) // g, axis=-1)
+
+
+def load_audio(
+    path: str | PathLike[str], target_sr: int = TARGET_SAMPLE_RATE, *, remove_mean: bool = True
+) -> tuple[np.ndarray, int]:
+    """Read a speech file as a float32 mono waveform ``[N]`` at ``target_sr`` (SPEC §1).
+
+    Steps: decode (libsndfile, else ffmpeg) to float in ``[-1, 1]``; mix channels down by their mean;
+    resample with :func:`scipy.signal.resample_poly`; subtract the waveform mean (``remove_mean``).
+
+    Returns:
+        ``(waveform, target_sr)``.
+
+    Raises:
+        InputFileError: missing file, a directory, an empty or undecodable file, no samples, NaN/inf.
+    """
+    p = Path(path)
+    if int(target_sr) != target_sr or target_sr <= 0:
+        raise ValueError(f"target_sr must be a positive integer, got {target_sr}")
+    target_sr = int(target_sr)
+    if not p.exists():
+        raise InputFileError(p, "file not found")
+    if p.is_dir():
+        raise InputFileError(p, "is a directory, not an audio file")
+    try:
+        with p.open("rb") as fh:
+            first = fh.read(1)
+    except OSError as err:
+        raise InputFileError(p, f"cannot read file ({err.strerror or err})") from None
+    if not first:
+        raise InputFileError(p, "empty file (0 bytes)")
+    try:
+        data, sr = _read_soundfile(p)
+    except Exception as err:  # libsndfile's errors are RuntimeError / TypeError / ValueError subclasses
+        data, sr = _read_ffmpeg(p, _one_line(str(err)))
+    if data.shape[0] == 0 or data.shape[1] == 0:
+        raise InputFileError(p, "contains no audio samples")
+    if not np.isfinite(data).all():
+        raise InputFileError(p, "contains NaN or infinite samples")
+    mono = data.astype(np.float64).mean(axis=1)
+    out = resample(mono, sr, target_sr)
+    if out.size == 0:
+        raise InputFileError(p, "contains no audio samples after resampling")
+    if remove_mean:
+        out = out - out.mean()
+    return np.ascontiguousarray(out, dtype=np.float32), target_sr
+
+
+def check_speech(
+    waveform: np.ndarray, sample_rate: int, path: str | PathLike[str], min_seconds: float = 1.0
+) -> None:
+    """Reject audio that cannot drive gesture generation: shorter than ``min_seconds`` or silent.
+
+    Silent means a peak magnitude below 1e-4 or an RMS below 1e-5 (after the mean removal of
+    :func:`load_audio`, so a pure DC offset is silent too).
+
+    Raises:
+        InputFileError: naming ``path``.
+    """
+    w = np.asarray(waveform, dtype=np.float64).reshape(-1)
+    duration = w.size / float(sample_rate)
+    if duration < min_seconds:
+        raise InputFileError(
+            path, f"audio is too short: {duration:.2f} s, at least {min_seconds:g} s of speech is needed"
+        )
+    if not np.isfinite(w).all():
+        raise InputFileError(path, "audio contains NaN or infinite samples")
+    peak = float(np.abs(w).max())
+    rms = float(np.sqrt(np.mean(w * w)))
+    if peak < _SILENCE_PEAK or rms < _SILENCE_RMS:
+        raise InputFileError(path, f"audio is silent (peak {peak:.1e}, RMS {rms:.1e})")

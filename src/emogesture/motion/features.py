@@ -1,0 +1,164 @@
+"""Model features: SMPL-X poses <-> per-frame 6D feature vectors, and their normalisation (SPEC §3)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from emogesture.motion.rotations import axis_angle_to_rot6d, rot6d_to_axis_angle
+from emogesture.motion.skeleton import UPPER_BODY_JOINTS
+from emogesture.types import NUM_JOINTS
+
+
+@dataclass(frozen=True)
+class MotionFeatureSpec:
+    """Which joints (and whether the root translation) make up a feature frame.
+
+    Layout of a frame: ``joints`` in the given order, 6 numbers each (see ``rotations``), then
+    the translation ``[3]`` when ``include_translation``. The default is the paper's 47 upper-body
+    joints = 282 numbers; ``all_joints()`` gives 55 joints + translation = 333.
+    """
+
+    joints: tuple[int, ...] = UPPER_BODY_JOINTS
+    include_translation: bool = False
+
+    def __post_init__(self) -> None:
+        joints = tuple(int(j) for j in self.joints)
+        if not joints or len(set(joints)) != len(joints) or not all(0 <= j < NUM_JOINTS for j in joints):
+            raise ValueError(f"joints must be distinct indices in [0, {NUM_JOINTS}), got {self.joints}")
+        object.__setattr__(self, "joints", joints)
+
+    @property
+    def dim(self) -> int:
+        """Numbers per frame: ``6 * len(joints) + 3 * include_translation``."""
+        return 6 * len(self.joints) + 3 * int(self.include_translation)
+
+    @classmethod
+    def all_joints(cls) -> "MotionFeatureSpec":
+        """All 55 joints plus root translation (333 numbers per frame)."""
+        return cls(joints=tuple(range(NUM_JOINTS)), include_translation=True)
+
+
+def poses_to_features(
+    poses: torch.Tensor, spec: MotionFeatureSpec | None = None, trans: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Axis-angle poses ``[..., T, 55, 3]`` (and ``trans [..., T, 3]``) -> features ``[..., T, dim]``.
+
+    ``trans`` is required when ``spec.include_translation`` and ignored otherwise.
+    """
+    spec = spec or MotionFeatureSpec()
+    if poses.dim() < 3 or tuple(poses.shape[-2:]) != (NUM_JOINTS, 3):
+        raise ValueError(f"poses must be [..., T, 55, 3], got {tuple(poses.shape)}")
+    index = torch.tensor(spec.joints, device=poses.device)
+    rot6d = axis_angle_to_rot6d(poses.index_select(-2, index))
+    feats = rot6d.reshape(*rot6d.shape[:-2], 6 * len(spec.joints))
+    if spec.include_translation:
+        if trans is None:
+            raise ValueError("this feature spec includes translation: pass trans [..., T, 3]")
+        if tuple(trans.shape) != tuple(poses.shape[:-2]) + (3,):
+            raise ValueError(f"trans must be {tuple(poses.shape[:-2]) + (3,)}, got {tuple(trans.shape)}")
+        feats = torch.cat([feats, trans.to(feats.dtype)], dim=-1)
+    return feats
+
+
+def features_to_poses(
+    features: torch.Tensor, spec: MotionFeatureSpec | None = None
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Features ``[..., T, dim]`` -> ``(poses [..., T, 55, 3], trans [..., T, 3] or None)``.
+
+    Joints not in ``spec`` come back at rest (zero rotation). ``trans`` is None unless the spec
+    includes translation.
+    """
+    spec = spec or MotionFeatureSpec()
+    if features.dim() < 2 or features.shape[-1] != spec.dim:
+        raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
+    lead = features.shape[:-1]
+    n = len(spec.joints)
+    rot6d = features[..., : 6 * n].reshape(*lead, n, 6)
+    selected = rot6d_to_axis_angle(rot6d)
+    poses = features.new_zeros(*lead, NUM_JOINTS, 3)
+    index = torch.tensor(spec.joints, device=features.device)
+    poses = poses.index_copy(-2, index, selected)
+    trans = features[..., 6 * n :] if spec.include_translation else None
+    return poses, trans
+
+
+@dataclass
+class FeatureStats:
+    """Per-feature normalisation statistics: ``mean [D]`` and ``std [D]`` (float32, std floored)."""
+
+    mean: np.ndarray
+    std: np.ndarray
+    _cache: dict[Any, tuple[torch.Tensor, torch.Tensor]] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+
+    def __post_init__(self) -> None:
+        self.mean = np.asarray(self.mean, np.float32).reshape(-1)
+        self.std = np.asarray(self.std, np.float32).reshape(-1)
+        if self.mean.shape != self.std.shape:
+            raise ValueError(f"mean {self.mean.shape} and std {self.std.shape} differ in size")
+        if not (np.all(np.isfinite(self.mean)) and np.all(np.isfinite(self.std)) and np.all(self.std > 0)):
+            raise ValueError("feature statistics must be finite with std > 0")
+
+    @property
+    def dim(self) -> int:
+        return int(self.mean.shape[0])
+
+    @classmethod
+    def compute(cls, features: np.ndarray | torch.Tensor, eps: float = 1e-4) -> "FeatureStats":
+        """Statistics of ``features [N, D]`` (or ``[..., D]``, flattened); ``std = max(std, eps)``."""
+        if isinstance(features, torch.Tensor):
+            features = features.detach().cpu().numpy()
+        x = np.asarray(features, np.float64)
+        x = x.reshape(-1, x.shape[-1])
+        if x.shape[0] == 0:
+            raise ValueError("cannot compute feature statistics from zero frames")
+        return cls(mean=x.mean(axis=0), std=np.maximum(x.std(axis=0), eps))
+
+    def _tensors(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        key = (like.dtype, like.device)
+        if key not in self._cache:
+            self._cache[key] = (
+                torch.as_tensor(self.mean, dtype=like.dtype, device=like.device),
+                torch.as_tensor(self.std, dtype=like.dtype, device=like.device),
+            )
+        return self._cache[key]
+
+    def normalise(self, x: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """``(x - mean) / std`` for ``x [..., D]`` (torch or numpy, same type out)."""
+        self._check(x)
+        if isinstance(x, torch.Tensor):
+            mean, std = self._tensors(x)
+            return (x - mean) / std
+        return ((x - self.mean) / self.std).astype(np.result_type(x, np.float32), copy=False)
+
+    def denormalise(self, x: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """``x * std + mean`` for ``x [..., D]`` (torch or numpy, same type out)."""
+        self._check(x)
+        if isinstance(x, torch.Tensor):
+            mean, std = self._tensors(x)
+            return x * std + mean
+        return (x * self.std + self.mean).astype(np.result_type(x, np.float32), copy=False)
+
+    def _check(self, x: np.ndarray | torch.Tensor) -> None:
+        if x.shape[-1] != self.dim:
+            raise ValueError(f"expected features [..., {self.dim}], got {tuple(x.shape)}")
+
+    def to_dict(self) -> dict[str, list[float]]:
+        """JSON-safe form ``{"mean": [D floats], "std": [D floats]}`` (float32 values round-trip exactly)."""
+        return {"mean": [float(v) for v in self.mean], "std": [float(v) for v in self.std]}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "FeatureStats":
+        """Inverse of ``to_dict`` (also accepts arrays/tensors as values)."""
+        try:
+            mean, std = data["mean"], data["std"]
+        except (KeyError, TypeError) as err:
+            raise ValueError(f"feature statistics need 'mean' and 'std', got {data!r:.80}") from err
+        if isinstance(mean, torch.Tensor):
+            mean, std = mean.cpu().numpy(), torch.as_tensor(std).cpu().numpy()
+        return cls(mean=np.asarray(mean, np.float32), std=np.asarray(std, np.float32))
