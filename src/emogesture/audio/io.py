@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 import soundfile as sf
-from scipy.signal import resample_poly
 
 from emogesture.errors import InputFileError
 
@@ -96,6 +95,8 @@ def resample(waveform: np.ndarray, orig_sr: int, target_sr: int) -> np.ndarray:
     if orig_sr == target_sr:
         return x
     g = math.gcd(int(orig_sr), int(target_sr))
+    from scipy.signal import resample_poly  # imported here: scipy.signal costs ~1 s at start-up
+
     return resample_poly(x, int(target_sr) // g, int(orig_sr) // g, axis=-1)
 
 

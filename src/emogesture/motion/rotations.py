@@ -1,6 +1,7 @@
 """Rotation conversions in torch, batched over any leading dims and differentiable.
 
-Axis-angle (rotation vector) <-> rotation matrix goes through ``roma``. The continuous 6D
+Axis-angle (rotation vector) <-> rotation matrix: Rodrigues' formula one way, a unit quaternion
+(largest-component branch, so it stays accurate near pi) the other way. The continuous 6D
 representation (Zhou et al., CVPR 2019) is defined here and only here:
 
     6D = the first two COLUMNS of the rotation matrix, column 0 then column 1:
@@ -12,7 +13,6 @@ not parallel maps to a valid rotation; ``rot6d_to_matrix(matrix_to_rot6d(R)) == 
 
 from __future__ import annotations
 
-import roma
 import torch
 
 _EPS = 1e-8
@@ -21,13 +21,29 @@ _EPS = 1e-8
 def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
     """Rotation vectors ``[..., 3]`` (angle = norm, radians) -> rotation matrices ``[..., 3, 3]``."""
     _check_last(axis_angle, (3,), "axis_angle")
-    return roma.rotvec_to_rotmat(axis_angle)
+    theta2 = (axis_angle * axis_angle).sum(-1, keepdim=True).unsqueeze(-1)  # [..., 1, 1]
+    small = theta2 < 1e-8
+    theta2_safe = torch.where(small, torch.ones_like(theta2), theta2)
+    theta = theta2_safe.sqrt()
+    # sin(t)/t and (1 - cos t)/t^2, with their Taylor series near zero
+    a = torch.where(small, 1.0 - theta2 / 6.0, torch.sin(theta) / theta)
+    b = torch.where(small, 0.5 - theta2 / 24.0, (1.0 - torch.cos(theta)) / theta2_safe)
+    k = _skew(axis_angle)
+    eye = torch.eye(3, dtype=axis_angle.dtype, device=axis_angle.device).expand_as(k)
+    return eye + a * k + b * (k @ k)
 
 
 def matrix_to_axis_angle(matrix: torch.Tensor) -> torch.Tensor:
     """Rotation matrices ``[..., 3, 3]`` -> rotation vectors ``[..., 3]`` with angle in ``[0, pi]``."""
     _check_last(matrix, (3, 3), "matrix")
-    return roma.rotmat_to_rotvec(matrix)
+    q = _matrix_to_quaternion(matrix)  # [..., 4] as (x, y, z, w), w >= 0
+    xyz, w = q[..., :3], q[..., 3:]
+    sin_half = xyz.norm(dim=-1, keepdim=True)
+    angle = 2.0 * torch.atan2(sin_half, w)
+    small = sin_half < 1e-6
+    # angle / sin(angle/2) -> 2 / w (1 + ...) near zero
+    scale = torch.where(small, 2.0 / w.clamp_min(_EPS), angle / torch.where(small, torch.ones_like(sin_half), sin_half))
+    return xyz * scale
 
 
 def matrix_to_rot6d(matrix: torch.Tensor) -> torch.Tensor:
@@ -83,6 +99,38 @@ def interpolate_rotations(a: torch.Tensor, b: torch.Tensor, w: torch.Tensor | fl
     relative = matrix_to_axis_angle(ma.transpose(-1, -2) @ mb)
     out = ma @ axis_angle_to_matrix(w.unsqueeze(-1) * relative)
     return matrix_to_rot6d(out) if six_d else out
+
+
+def _skew(v: torch.Tensor) -> torch.Tensor:
+    """Cross-product matrices ``[..., 3, 3]`` of vectors ``[..., 3]``."""
+    x, y, z = v.unbind(-1)
+    o = torch.zeros_like(x)
+    return torch.stack([o, -z, y, z, o, -x, -y, x, o], dim=-1).reshape(*v.shape[:-1], 3, 3)
+
+
+def _matrix_to_quaternion(m: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices ``[..., 3, 3]`` -> unit quaternions ``[..., 4]`` (x, y, z, w), w >= 0.
+
+    Of the four algebraically equal solutions, each row uses the one built on its largest
+    quaternion component, which avoids dividing by a small number.
+    """
+    m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    # 4 * component^2 for w, x, y, z
+    sq = torch.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
+    r = sq.clamp_min(_EPS).sqrt()  # 2 * |component|
+    rw, rx, ry, rz = r.unbind(-1)
+    cand = torch.stack([
+        torch.stack([m21 - m12, m02 - m20, m10 - m01, rw * rw], -1) / (2 * rw.unsqueeze(-1)),
+        torch.stack([rx * rx, m01 + m10, m02 + m20, m21 - m12], -1) / (2 * rx.unsqueeze(-1)),
+        torch.stack([m01 + m10, ry * ry, m12 + m21, m02 - m20], -1) / (2 * ry.unsqueeze(-1)),
+        torch.stack([m02 + m20, m12 + m21, rz * rz, m10 - m01], -1) / (2 * rz.unsqueeze(-1)),
+    ], -2)  # [..., 4 candidates, (x, y, z, w)]
+    best = sq.argmax(-1, keepdim=True)
+    q = torch.gather(cand, -2, best.unsqueeze(-1).expand(*best.shape[:-1], 1, 4)).squeeze(-2)
+    q = q / q.norm(dim=-1, keepdim=True).clamp_min(_EPS)
+    return torch.where(q[..., 3:] < 0, -q, q)
 
 
 def _check_last(x: torch.Tensor, shape: tuple[int, ...], name: str) -> None:

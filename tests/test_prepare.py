@@ -1,0 +1,141 @@
+"""`emogesture prepare`: cache layout, idempotence, resume after a kill, bad input."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from emogesture.data.beat import format_take_name, write_split_csv
+from emogesture.data.cache import open_cache
+from emogesture.data.prepare import PrepareConfig, prepare
+from emogesture.errors import EmogestureError, InputFileError
+from emogesture.motion import save_smplx_npz
+from emogesture.types import SMPLXSequence
+
+SECONDS = 21.0
+
+
+def make_root(root: Path, speakers=(1, 2), takes=(1, 2, 65, 66), seed=0) -> list[str]:
+    """A small BEAT2-layout folder: tone-burst audio and smooth random upper-body motion."""
+    rng = np.random.default_rng(seed)
+    for d in ("smplxflame_30", "wave16k", "sem"):
+        (root / d).mkdir(parents=True, exist_ok=True)
+    names, splits = [], {}
+    t = np.arange(int(SECONDS * 16000)) / 16000
+    for spk in speakers:
+        for take in takes:
+            name = format_take_name(spk, take)
+            names.append(name)
+            f0 = 120 + 40 * spk + take
+            wave = 0.3 * np.sin(2 * np.pi * f0 * t) * (np.sin(2 * np.pi * 2.0 * t) > 0)
+            sf.write(root / "wave16k" / f"{name}.wav", wave.astype(np.float32), 16000, subtype="PCM_16")
+            T = int(SECONDS * 30)
+            poses = np.cumsum(rng.normal(0, 0.01, (T, 55, 3)), axis=0).astype(np.float32)
+            save_smplx_npz(SMPLXSequence(poses=poses, trans=np.zeros((T, 3))), root / "smplxflame_30" / f"{name}.npz")
+            (root / "sem" / f"{name}.txt").write_text("beat\t1.0\t2.0\t1.0\t0.5\tword\n")
+            splits[name] = "test" if take in (2, 66) else "train"
+    write_split_csv(root / "train_test_split.csv", splits)
+    return names
+
+
+def test_layout_and_contents(tmp_path):
+    names = make_root(tmp_path / "root")
+    res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    assert res.assembled and res.takes_processed == len(names) == res.takes_total
+    cache = open_cache(tmp_path / "cache")
+    assert set(cache.splits) == {"train", "test"}
+    train, test = cache.split("train"), cache.split("test")
+    # 21 s takes: training windows every 5 s (0, 5, 10), evaluation windows every 10 s (0, 10)
+    assert len(train) == 4 * 3 and len(test) == 4 * 2
+    assert train.fbank.shape == (12, 1024, 128) and train.fbank.dtype == np.float16
+    assert train.motion.shape == (12, 300, 282) and train.sem.shape == (12, 300)
+    # the normalised fbank has roughly zero mean / half unit std on the training split (mean/(2 std))
+    fb = np.asarray(train.fbank, np.float32)
+    assert abs(fb.mean()) < 0.1 and 0.35 < fb.std() < 0.65
+    assert sorted(set(train.emotion.tolist())) == [0, 1]  # takes 1 (neutral) and 65 (happiness)
+    assert set(train.speaker_id.tolist()) == {1, 2}
+    # motion windows are the right slices of the take's features
+    from emogesture.motion import MotionFeatureSpec, load_smplx_npz, poses_to_features
+    import torch
+    i = train.takes.index(names[0]) + 1  # second window of the first take starts at 5 s
+    assert train.start_s[i] == 5.0
+    seq = load_smplx_npz(tmp_path / "root" / "smplxflame_30" / f"{names[0]}.npz")
+    feats = poses_to_features(torch.from_numpy(seq.poses), MotionFeatureSpec()).numpy()
+    np.testing.assert_allclose(train.motion[i], feats[150:450], atol=1e-6)
+    # semantic scores: 1.0-2.0 s at 0.5 in the first window, nothing in the second
+    assert train.sem[i - 1][30:60].min() == pytest.approx(0.5) and train.sem[i].max() == 0
+    assert len(cache.stats["motion_mean"]) == 282
+
+
+def test_second_run_does_nothing(tmp_path):
+    make_root(tmp_path / "root")
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    stamp = {p: p.stat().st_mtime_ns for p in (tmp_path / "cache").rglob("*") if p.is_file()}
+    res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    assert res.takes_processed == 0 and not res.assembled
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cache").rglob("*") if p.is_file()} == stamp
+
+
+def test_other_settings_into_the_same_cache_are_refused(tmp_path):
+    make_root(tmp_path / "root")
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    with pytest.raises(EmogestureError, match="other settings"):
+        prepare(tmp_path / "root", tmp_path / "cache", PrepareConfig(hop_seconds=2.5), progress=False)
+
+
+def _cli(*args):
+    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+
+
+def test_killed_midway_resumes_to_the_same_result(tmp_path):
+    make_root(tmp_path / "root", speakers=(1, 2, 3, 4, 5), takes=(1, 2, 3, 65, 66, 67))
+    prepare(tmp_path / "root", tmp_path / "clean", progress=False)
+
+    proc = subprocess.Popen(_cli("prepare", tmp_path / "root", "--out", tmp_path / "cache", "--quiet"),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    takes = tmp_path / "cache" / "takes"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if takes.is_dir() and len(list(takes.glob("*.npz"))) >= 3:
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.005)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL, "prepare finished before it could be killed"
+    done = len(list(takes.glob("*.npz")))
+    assert 3 <= done < 30 and not (tmp_path / "cache" / "manifest.json").exists()
+
+    res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    assert res.takes_processed == 30 - done  # resumed, not restarted
+    a, b = open_cache(tmp_path / "clean"), open_cache(tmp_path / "cache")
+    for split in ("train", "test"):
+        sa, sb = a.split(split), b.split(split)
+        assert sa.takes == sb.takes
+        for key in ("fbank", "motion", "sem"):
+            assert np.array_equal(getattr(sa, key), getattr(sb, key)), (split, key)
+    assert a.stats == b.stats
+
+
+def test_bad_roots_are_one_line_errors(tmp_path):
+    with pytest.raises(InputFileError, match="nowhere"):
+        prepare(tmp_path / "nowhere", tmp_path / "cache", progress=False)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputFileError, match="smplxflame_30"):
+        prepare(tmp_path / "empty", tmp_path / "cache2", progress=False)
+    proc = subprocess.run(_cli("prepare", tmp_path / "empty", "--out", tmp_path / "cache3"),
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "smplxflame_30" in proc.stderr
+
+
+def test_corrupt_take_names_the_file(tmp_path):
+    names = make_root(tmp_path / "root", speakers=(1,), takes=(1, 65))
+    (tmp_path / "root" / "wave16k" / f"{names[0]}.wav").write_bytes(b"RIFF garbage")
+    with pytest.raises(InputFileError, match=names[0]):
+        prepare(tmp_path / "root", tmp_path / "cache", progress=False)
