@@ -1,0 +1,243 @@
+"""Speech disentanglement model (SPEC §2, supp. B): three ViT encoders, a fusion, a filterbank decoder.
+
+``fbank [B, 1024, 128]`` -> content, emotion, style latents ``[B, 256]`` each (plus emotion and speaker
+logits) -> fusion of the three latents into one embedding -> decoder back to ``[B, 1024, 128]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import torch
+from torch import nn
+
+from emogesture.errors import ConfigError
+from emogesture.models.vit import LN_EPS, AudioViT, Block, CrossBlock, ViTConfig, init_transformer_weights
+
+COMPONENTS = ("content_encoder", "emotion_encoder", "style_encoder", "fusion", "decoder")
+
+
+@dataclass
+class SpeechModelConfig:
+    """Size of the speech disentanglement model. Defaults are the ``paper`` preset with 30 speakers.
+
+    The decoder uses ``input_frames / decoder_time_stride`` learned time queries (128 for the paper
+    preset), each cross-attending ``decoder_memory_tokens`` tokens made from the fused embedding and
+    mapped by one Linear to ``decoder_time_stride`` frames × 128 bins.
+    """
+
+    encoder: ViTConfig = field(default_factory=ViTConfig)
+    latent_dim: int = 256
+    num_emotions: int = 8
+    num_speakers: int = 30
+    fusion_layers: int = 2
+    fusion_heads: int = 4
+    fusion_width: int = 768
+    decoder_layers: int = 4
+    decoder_heads: int = 4
+    decoder_width: int = 512
+    decoder_time_stride: int = 8
+    decoder_memory_tokens: int = 8
+    dropout: float = 0.1
+
+    def __post_init__(self) -> None:
+        if self.fusion_width % self.fusion_heads or self.decoder_width % self.decoder_heads:
+            raise ConfigError("speech model: fusion/decoder width must be divisible by its heads")
+        if self.encoder.input_frames % self.decoder_time_stride:
+            raise ConfigError(
+                f"speech model: decoder_time_stride {self.decoder_time_stride} does not divide "
+                f"{self.encoder.input_frames} frames"
+            )
+        if min(self.num_emotions, self.num_speakers, self.latent_dim, self.decoder_memory_tokens) < 1:
+            raise ConfigError("speech model: num_emotions, num_speakers, latent_dim and memory tokens must be ≥ 1")
+
+    @classmethod
+    def preset(cls, name: str, num_speakers: int = 30) -> "SpeechModelConfig":
+        """``paper``: three DeiT-B/16-384 encoders (≈86 M each), fusion width 768 (supp. B.5).
+
+        ``tiny``: width-64 encoders on 32×32 patches, small fusion and decoder, for CPU training: a
+        step of 16 quadruples (64 windows, 256 decodes) takes about 0.7–1 s on two CPU cores.
+        """
+        if name == "paper":
+            return cls(encoder=ViTConfig.preset("paper"), num_speakers=num_speakers)
+        if name == "tiny":
+            return cls(
+                encoder=ViTConfig.preset("tiny"), num_speakers=num_speakers, fusion_width=64,
+                fusion_layers=2, fusion_heads=4, decoder_width=32, decoder_layers=2, decoder_heads=4,
+                decoder_time_stride=32, decoder_memory_tokens=4, dropout=0.0,
+            )
+        raise ConfigError(f"unknown speech model preset {name!r}; known: paper, tiny")
+
+
+class AudioLatents(NamedTuple):
+    """The three disentangled latents, each ``[B, latent_dim]``."""
+
+    content: torch.Tensor
+    emotion: torch.Tensor
+    style: torch.Tensor
+
+
+class SpeechEncoding(NamedTuple):
+    """Output of :meth:`SpeechDisentangler.encode`: latents ``[B, 256]`` and logits ``[B, 8]``/``[B, n]``."""
+
+    content: torch.Tensor
+    emotion: torch.Tensor
+    style: torch.Tensor
+    emotion_logits: torch.Tensor
+    speaker_logits: torch.Tensor
+
+    @property
+    def latents(self) -> AudioLatents:
+        return AudioLatents(self.content, self.emotion, self.style)
+
+
+class SpeechOutput(NamedTuple):
+    """Output of :meth:`SpeechDisentangler.forward`: the encoding plus ``reconstruction [B, 1024, 128]``."""
+
+    content: torch.Tensor
+    emotion: torch.Tensor
+    style: torch.Tensor
+    emotion_logits: torch.Tensor
+    speaker_logits: torch.Tensor
+    reconstruction: torch.Tensor
+
+
+class SpeechEncoder(nn.Module):
+    """One ViT, a latent head (LayerNorm + Linear on the mean patch token), an optional classifier."""
+
+    def __init__(self, vit: ViTConfig, latent_dim: int, num_classes: int | None = None) -> None:
+        super().__init__()
+        self.vit = AudioViT(vit)
+        self.latent_head = nn.Sequential(nn.LayerNorm(vit.width, eps=LN_EPS), nn.Linear(vit.width, latent_dim))
+        self.classifier = nn.Linear(vit.width, num_classes) if num_classes else None
+        self.latent_head.apply(init_transformer_weights)
+        if self.classifier is not None:
+            init_transformer_weights(self.classifier)
+
+    def forward(self, fbank: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """``fbank [B, 1024, 128] -> (latent [B, 256], logits [B, classes] or None)``.
+
+        The logits come from the mean of the [CLS] and [DIST] outputs (only [CLS] if not distilled).
+        """
+        tokens = self.vit(fbank)
+        k = self.vit.config.num_prefix
+        latent = self.latent_head(tokens[:, k:].mean(dim=1))
+        logits = self.classifier(tokens[:, :k].mean(dim=1)) if self.classifier is not None else None
+        return latent, logits
+
+
+class LatentFusion(nn.Module):
+    """Three latents as three tokens (own projection + learned type embedding each) -> one embedding."""
+
+    def __init__(self, config: SpeechModelConfig) -> None:
+        super().__init__()
+        w = config.fusion_width
+        self.in_proj = nn.ModuleList(nn.Linear(config.latent_dim, w) for _ in range(3))
+        self.type_embed = nn.Parameter(torch.zeros(1, 3, w))
+        self.blocks = nn.ModuleList(
+            Block(w, config.fusion_heads, 4.0, config.dropout) for _ in range(config.fusion_layers)
+        )
+        self.norm = nn.LayerNorm(w, eps=LN_EPS)
+        self.apply(init_transformer_weights)
+        nn.init.trunc_normal_(self.type_embed, std=0.02)
+
+    def forward(self, content: torch.Tensor, emotion: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
+        """Three ``[B, 256]`` -> fused ``[B, fusion_width]``; attention runs over the 3 tokens of a sample."""
+        x = torch.stack([p(v) for p, v in zip(self.in_proj, (content, emotion, style))], dim=1)
+        x = x + self.type_embed
+        for block in self.blocks:
+            x = block(x)
+        return self.norm(x).mean(dim=1)
+
+
+class FilterbankDecoder(nn.Module):
+    """Learned time queries cross-attending memory tokens made from the fused embedding."""
+
+    def __init__(self, config: SpeechModelConfig) -> None:
+        super().__init__()
+        w = config.decoder_width
+        self.frames = config.encoder.input_frames
+        self.bins = config.encoder.input_bins
+        self.stride = config.decoder_time_stride
+        self.memory_tokens = config.decoder_memory_tokens
+        self.memory_proj = nn.Linear(config.fusion_width, self.memory_tokens * w)
+        self.queries = nn.Parameter(torch.zeros(1, self.frames // self.stride, w))
+        self.blocks = nn.ModuleList(
+            CrossBlock(w, config.decoder_heads, 4.0, config.dropout) for _ in range(config.decoder_layers)
+        )
+        self.norm = nn.LayerNorm(w, eps=LN_EPS)
+        self.out = nn.Linear(w, self.stride * self.bins)
+        self.apply(init_transformer_weights)
+        nn.init.trunc_normal_(self.queries, std=0.02)
+
+    def forward(self, fused: torch.Tensor) -> torch.Tensor:
+        """``fused [B, fusion_width] -> filterbank [B, 1024, 128]``."""
+        b = fused.shape[0]
+        memory = self.memory_proj(fused).reshape(b, self.memory_tokens, -1)
+        x = self.queries.expand(b, -1, -1)
+        for block in self.blocks:
+            x = block(x, memory)
+        y = self.out(self.norm(x))  # [B, frames / stride, stride * bins]
+        return y.reshape(b, self.frames, self.bins)
+
+
+class SpeechDisentangler(nn.Module):
+    """E_c, E_e, E_s + fusion + decoder (SPEC §2)."""
+
+    def __init__(self, config: SpeechModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.content_encoder = SpeechEncoder(config.encoder, config.latent_dim, None)
+        self.emotion_encoder = SpeechEncoder(config.encoder, config.latent_dim, config.num_emotions)
+        self.style_encoder = SpeechEncoder(config.encoder, config.latent_dim, config.num_speakers)
+        self.fusion = LatentFusion(config)
+        self.decoder = FilterbankDecoder(config)
+
+    def encode(self, fbank: torch.Tensor) -> SpeechEncoding:
+        """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``."""
+        content, _ = self.content_encoder(fbank)
+        emotion, emotion_logits = self.emotion_encoder(fbank)
+        style, speaker_logits = self.style_encoder(fbank)
+        return SpeechEncoding(content, emotion, style, emotion_logits, speaker_logits)
+
+    def decode(self, content: torch.Tensor, emotion: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
+        """Latents ``[B, 256]`` ×3 -> reconstructed filterbank ``[B, 1024, 128]``."""
+        return self.decoder(self.fusion(content, emotion, style))
+
+    def forward(self, fbank: torch.Tensor) -> SpeechOutput:
+        """``fbank [B, 1024, 128]`` -> encoding + self-reconstruction ``[B, 1024, 128]``."""
+        enc = self.encode(fbank)
+        return SpeechOutput(*enc, self.decode(enc.content, enc.emotion, enc.style))
+
+    def count_parameters(self) -> dict[str, int]:
+        """Parameter count per component (``content_encoder`` ... ``decoder``) and ``total``."""
+        counts = {name: sum(p.numel() for p in getattr(self, name).parameters()) for name in COMPONENTS}
+        counts["total"] = sum(p.numel() for p in self.parameters())
+        return counts
+
+    def flops_per_window(self) -> dict[str, int]:
+        """FLOPs of encoding and self-reconstructing one ``[1, 1024, 128]`` window, per component."""
+        return flops_per_window(self.config)
+
+
+def flops_per_window(config: SpeechModelConfig) -> dict[str, int]:
+    """FLOPs (multiply-add = 2) of one window through encode + decode, counted on the meta device.
+
+    Counts matmuls, convolutions and attention (torch's ``FlopCounterMode``); norms and activations
+    are not counted. Uses a weightless copy of the model, so it is instant even for the paper preset.
+    """
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with torch.device("meta"):
+        model = SpeechDisentangler(config).eval()
+        x = torch.zeros(1, config.encoder.input_frames, config.encoder.input_bins)
+    with FlopCounterMode(display=False) as counter:
+        model(x)
+    per_module = counter.get_flop_counts()
+    out = {}
+    for name in COMPONENTS:
+        counts = per_module.get(f"{type(model).__name__}.{name}", {})
+        out[name] = int(sum(counts.values()))
+    out["total"] = int(counter.get_total_flops())
+    return out

@@ -1,0 +1,149 @@
+"""Quadruple losses of the speech disentanglement model (SPEC §2, supp. B.4).
+
+A training sample is a quadruple ``(a1, a2, a3, a4) = (c1 s1, c2 s1, c1 s2, c2 s2)``: one emotion, two
+texts (contents) c1, c2 and two speakers s1, s2. Indices below are 0-based: window ``k`` of a quadruple.
+
+Terms (paper notation -> key here), each a mean absolute error or a mean cross-entropy:
+
+- L_self  -> ``self_recon``:    D(c_k, e_k, s_k) vs a_k
+- L_con   -> ``content``:       |E_c(a1) - E_c(a3)| + |E_c(a2) - E_c(a4)|
+- L_emo   -> ``emotion``:       cross-entropy of E_e's logits against the quadruple's emotion
+- L_sty   -> ``style``:         cross-entropy of E_s's logits against each window's speaker
+- L_xemo  -> ``cross_emotion``: D(c_k, e_j(k), s_k) vs a_k, j = EMOTION_STYLE_PARTNER
+- L_xsty  -> ``cross_style``:   D(c_k, e_k, s_j(k)) vs a_k, j = EMOTION_STYLE_PARTNER
+- L_xcon  -> ``cross_content``: D(c_j(k), e_k, s_k) vs a_k, j = CONTENT_PARTNER
+
+The paper sums L1 norms over k; here each reconstruction term is the mean absolute error over the four
+windows, frames and bins, and ``content`` the mean over the two pairs and latent dimensions (constant
+factors only). ``model`` is anything with ``encode(fbank [N, T, F]) -> SpeechEncoding`` and
+``decode(content, emotion, style) -> [N, T, F]``, e.g. :class:`~emogesture.models.speech.SpeechDisentangler`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import torch
+import torch.nn.functional as F
+
+from emogesture.errors import ConfigError
+
+#: Same speaker, other text: a1 <-> a2, a3 <-> a4 (1-based j(k) = 2, 1, 4, 3). Emotion and style swaps.
+EMOTION_STYLE_PARTNER: tuple[int, int, int, int] = (1, 0, 3, 2)
+#: Same text, other speaker: a1 <-> a3, a2 <-> a4 (1-based j(k) = 3, 4, 1, 2). Content swaps.
+CONTENT_PARTNER: tuple[int, int, int, int] = (2, 3, 0, 1)
+
+_SELF = (0, 1, 2, 3)
+#: For each reconstruction term, the window index of (content, emotion, style) decoded for target a_k.
+RECONSTRUCTIONS: dict[str, tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]] = {
+    "self_recon": (_SELF, _SELF, _SELF),
+    "cross_emotion": (_SELF, EMOTION_STYLE_PARTNER, _SELF),
+    "cross_style": (_SELF, _SELF, EMOTION_STYLE_PARTNER),
+    "cross_content": (CONTENT_PARTNER, _SELF, _SELF),
+}
+
+
+@dataclass
+class SpeechLossConfig:
+    """Weight of each term (SPEC §2: all 1). A weight of 0 switches the term off: it is not computed."""
+
+    self_recon: float = 1.0
+    content: float = 1.0
+    emotion: float = 1.0
+    style: float = 1.0
+    cross_emotion: float = 1.0
+    cross_style: float = 1.0
+    cross_content: float = 1.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if getattr(self, f.name) < 0:
+                raise ConfigError(f"speech loss weight {f.name} must be ≥ 0, got {getattr(self, f.name)}")
+
+    @classmethod
+    def preset(cls, name: str) -> "SpeechLossConfig":
+        """``full`` (all terms), ``emotion_only`` (no L_sty, L_xsty), ``style_only`` (no L_emo, L_xemo)."""
+        if name == "full":
+            return cls()
+        if name == "emotion_only":
+            return cls(style=0.0, cross_style=0.0)
+        if name == "style_only":
+            return cls(emotion=0.0, cross_emotion=0.0)
+        raise ConfigError(f"unknown speech loss preset {name!r}; known: full, emotion_only, style_only")
+
+    def active(self) -> list[str]:
+        """Names of the switched-on terms."""
+        return [f.name for f in fields(self) if getattr(self, f.name) > 0]
+
+
+class _MeanAbsError(torch.autograd.Function):
+    """``mean |pred - target|`` per index of dim 1 of ``pred [B, n, 4, T, F]`` vs ``target [B, 1, 4, T, F]``.
+
+    Same value and gradient as ``(pred - target).abs().mean(dim=(0, 2, 3, 4))`` with fewer passes over
+    the (large) reconstructions: saves only the sign. ``target`` gets no gradient.
+    """
+
+    @staticmethod
+    def forward(ctx, pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        diff = pred - target
+        sign = diff.sign()
+        ctx.count = diff.numel() // diff.shape[1]
+        ctx.save_for_backward(sign)
+        return diff.abs_().mean(dim=(0, 2, 3, 4))
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor):
+        (sign,) = ctx.saved_tensors
+        return sign * (grad / ctx.count).view(1, -1, 1, 1, 1), None
+
+
+def speech_losses(
+    model, fbank: torch.Tensor, emotion: torch.Tensor, speaker: torch.Tensor,
+    config: SpeechLossConfig | None = None,
+) -> dict[str, torch.Tensor]:
+    """Disentanglement losses of a batch of quadruples.
+
+    Args:
+        model: exposes ``encode`` and ``decode`` (see the module docstring).
+        fbank: ``[B, 4, T, F]`` (``[B, 4, 1024, 128]``) windows in quadruple order (c1 s1, c2 s1, c1 s2, c2 s2).
+        emotion: ``[B]`` emotion class of each quadruple (shared by its four windows).
+        speaker: ``[B, 4]`` speaker class of each window.
+        config: term weights; ``None`` means :meth:`SpeechLossConfig.preset` ``"full"``.
+
+    Returns:
+        A dict with a scalar per switched-on term (unweighted) and ``total`` (the weighted sum).
+        All 4·B windows are encoded in one pass and all requested reconstructions decoded in one pass.
+    """
+    config = config or SpeechLossConfig()
+    if fbank.dim() != 4 or fbank.shape[1] != 4:
+        raise ValueError(f"fbank must be [B, 4, T, F] quadruples, got {tuple(fbank.shape)}")
+    b, _, t, f = fbank.shape
+    if emotion.shape != (b,) or speaker.shape != (b, 4):
+        raise ValueError(
+            f"expected emotion [{b}] and speaker [{b}, 4], got {tuple(emotion.shape)}, {tuple(speaker.shape)}"
+        )
+    active = config.active()
+    enc = model.encode(fbank.reshape(b * 4, t, f))
+    lat = [v.reshape(b, 4, -1) for v in (enc.content, enc.emotion, enc.style)]
+    out: dict[str, torch.Tensor] = {}
+
+    recon = [name for name in RECONSTRUCTIONS if name in active]
+    if recon:
+        idx = [torch.tensor([i for name in recon for i in RECONSTRUCTIONS[name][part]], device=fbank.device)
+               for part in range(3)]
+        picked = [v[:, ix].reshape(b * len(ix), -1) for v, ix in zip(lat, idx)]
+        decoded = model.decode(*picked).reshape(b, len(recon), 4, t, f)
+        errors = _MeanAbsError.apply(decoded, fbank.unsqueeze(1))
+        out.update({name: errors[i] for i, name in enumerate(recon)})
+    if "content" in active:
+        out["content"] = (lat[0][:, :2] - lat[0][:, 2:]).abs().mean()
+    if "emotion" in active:
+        out["emotion"] = F.cross_entropy(enc.emotion_logits, emotion.repeat_interleave(4))
+    if "style" in active:
+        out["style"] = F.cross_entropy(enc.speaker_logits, speaker.reshape(-1))
+
+    total = fbank.new_zeros(())
+    for name, value in out.items():
+        total = total + getattr(config, name) * value
+    out["total"] = total
+    return out

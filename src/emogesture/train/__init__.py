@@ -1,0 +1,1 @@
+"""Training: Lightning modules and the shared run machinery (checkpoints, logging, resume)."""

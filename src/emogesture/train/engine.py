@@ -1,0 +1,137 @@
+"""Shared run machinery for every trainer: a run folder, atomic checkpoints, logs, resume.
+
+A run folder holds ``checkpoints/last.ckpt`` (full training state, for resuming), the exported
+model (``model.safetensors`` + ``model.json``, see :mod:`emogesture.checkpoints`), ``run.json``
+(the command's settings) and logs (CSV and TensorBoard). Every file is written atomically, so a
+run killed at any moment leaves either the previous or the new checkpoint, never a broken one;
+re-running the same command resumes from ``last.ckpt``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import lightning as L
+import torch
+from lightning.fabric.plugins.io.torch_io import TorchCheckpointIO
+from lightning.pytorch.callbacks import Callback, ModelCheckpoint, TQDMProgressBar
+from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
+
+from emogesture.errors import EmogestureError
+
+
+class AtomicCheckpointIO(TorchCheckpointIO):
+    """Lightning checkpoints written to a temporary file, then renamed into place."""
+
+    def save_checkpoint(self, checkpoint: dict[str, Any], path: Any, storage_options: Any | None = None) -> None:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp")
+        super().save_checkpoint(checkpoint, tmp, storage_options)
+        os.replace(tmp, path)
+
+
+class ExportModel(Callback):
+    """Write the exported model files every time Lightning saves a checkpoint (rank 0 only)."""
+
+    def __init__(self, export) -> None:
+        self.export = export
+
+    def on_save_checkpoint(self, trainer: L.Trainer, module: L.LightningModule, checkpoint: dict) -> None:
+        if trainer.is_global_zero:
+            self.export(module)
+
+    def on_train_end(self, trainer: L.Trainer, module: L.LightningModule) -> None:
+        if trainer.is_global_zero:
+            self.export(module)
+
+
+@dataclass
+class RunSettings:
+    """Engine settings common to every ``emogesture train`` command."""
+
+    max_steps: int = 1000
+    devices: int = 1
+    accelerator: str = "cpu"  # cpu, gpu, auto
+    precision: str = "32-true"  # or bf16-mixed
+    checkpoint_every: int = 200  # steps
+    log_every: int = 20  # steps
+    progress: bool = True
+    seed: int = 0
+
+
+def last_checkpoint(run_dir: Path) -> Path | None:
+    p = run_dir / "checkpoints" / "last.ckpt"
+    return p if p.is_file() else None
+
+
+def check_run_dir(run_dir: Path, settings_blob: dict, overwrite: bool = False) -> bool:
+    """Create or re-open a run folder; returns True when resuming.
+
+    A folder holding another command's run is refused (one line), unless ``overwrite``.
+    """
+    run_json = run_dir / "run.json"
+    if run_json.is_file():
+        old = json.loads(run_json.read_text())
+        if old != settings_blob and not overwrite:
+            changed = sorted(k for k in set(old) | set(settings_blob) if old.get(k) != settings_blob.get(k))
+            raise EmogestureError(
+                f"{run_dir}: holds a run with other settings ({', '.join(changed)}); "
+                "use another --out, or --overwrite to start it again"
+            )
+    elif run_dir.exists() and any(run_dir.iterdir()) and not overwrite:
+        raise EmogestureError(f"{run_dir}: exists and is not a run folder; use another --out")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    tmp = run_json.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(settings_blob, indent=1, sort_keys=True))
+    os.replace(tmp, run_json)
+    return last_checkpoint(run_dir) is not None and not overwrite
+
+
+def make_trainer(run_dir: Path, settings: RunSettings, export, extra_callbacks: list | None = None) -> L.Trainer:
+    """A Lightning Trainer writing into ``run_dir`` with atomic checkpoints every N steps."""
+    ckpt = ModelCheckpoint(
+        dirpath=run_dir / "checkpoints",
+        filename="step{step:07d}",
+        auto_insert_metric_name=False,
+        every_n_train_steps=settings.checkpoint_every,
+        save_last=True,
+        save_top_k=1,
+        monitor=None,
+    )
+    callbacks = [ckpt, ExportModel(export), *(extra_callbacks or [])]
+    if settings.progress:
+        callbacks.append(TQDMProgressBar(refresh_rate=max(1, settings.log_every // 4)))
+    strategy: Any = "auto"
+    if settings.devices > 1:
+        strategy = "ddp"
+    return L.Trainer(
+        default_root_dir=run_dir,
+        max_steps=settings.max_steps,
+        max_epochs=-1,
+        accelerator=settings.accelerator,
+        devices=settings.devices,
+        strategy=strategy,
+        precision=settings.precision,
+        logger=[CSVLogger(run_dir, name="logs", version=""), TensorBoardLogger(run_dir, name="tb", version="")],
+        callbacks=callbacks,
+        plugins=[AtomicCheckpointIO()],
+        log_every_n_steps=settings.log_every,
+        enable_progress_bar=settings.progress,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        deterministic=False,
+        use_distributed_sampler=True,
+    )
+
+
+def fit(trainer: L.Trainer, module: L.LightningModule, datamodule: L.LightningDataModule, run_dir: Path,
+        resume: bool) -> None:
+    """``trainer.fit``, resuming from ``last.ckpt`` when asked (weights-only loading)."""
+    ckpt_path = last_checkpoint(run_dir) if resume else None
+    torch.set_float32_matmul_precision("high")
+    trainer.fit(module, datamodule=datamodule, ckpt_path=str(ckpt_path) if ckpt_path else None, weights_only=True)

@@ -1,0 +1,384 @@
+"""Speech disentanglement model: shapes, sizes, batch independence, losses, pretrained adaptation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+
+from emogesture.errors import EmogestureError, InputFileError
+from emogesture.models import speech_losses as sl
+from emogesture.models.pretrained import (
+    adapt_ast_checkpoint, adapt_deit_to_audio, init_encoder_from_pretrained, load_deit_state_dict,
+)
+from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
+from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
+from emogesture.models.vit import AudioViT, ViTConfig
+
+
+def _gen(seed: int) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+@pytest.fixture(scope="module")
+def tiny() -> SpeechDisentangler:
+    torch.manual_seed(0)
+    return SpeechDisentangler(SpeechModelConfig.preset("tiny", num_speakers=5)).eval()
+
+
+def test_tiny_output_shapes(tiny):
+    x = torch.randn(2, 1024, 128, generator=_gen(1))
+    out = tiny(x)
+    for name in ("content", "emotion", "style"):
+        assert getattr(out, name).shape == (2, 256)
+    assert out.emotion_logits.shape == (2, 8)
+    assert out.speaker_logits.shape == (2, 5)
+    assert out.reconstruction.shape == (2, 1024, 128)
+    enc = tiny.encode(x)
+    assert isinstance(enc, SpeechEncoding) and enc.latents.content.shape == (2, 256)
+    assert tiny.decode(enc.content, enc.emotion, enc.style).shape == (2, 1024, 128)
+    with pytest.raises(ValueError, match=r"\[B, 1024, 128\]"):
+        tiny.encode(torch.zeros(2, 128, 1024))
+
+
+def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
+    cfg = ViTConfig(width=8, depth=1, heads=2)  # paper patching (16, stride 10), narrow for speed
+    assert cfg.grid == (12, 101) and cfg.num_patches == 1212
+    vit = AudioViT(cfg)
+    x = torch.randn(2, 1024, 128, generator=_gen(8))
+    assert vit.patch_embed.proj.weight.shape == (8, 1, 16, 16) and vit(x).shape == (2, 2 + 1212, 8)
+    assert AudioViT(ViTConfig(width=8, depth=1, heads=2, distilled=False))(x).shape == (2, 1 + 1212, 8)
+    image = x.transpose(1, 2).unsqueeze(1)  # [B, 1, 128 (freq), 1024 (time)]
+    ref = vit.patch_embed.proj(image).flatten(2).transpose(1, 2)  # frequency-major 12 x 101
+    assert torch.allclose(vit.patch_embed(x), ref, atol=1e-5)
+    # patch (f=1, t=2) sees bins 10..25 of frames 20..35
+    manual = (vit.patch_embed.proj.weight[:, 0] * image[0, 0, 10:26, 20:36]).sum((1, 2)) + vit.patch_embed.proj.bias
+    assert torch.allclose(vit.patch_embed(x)[0, 1 * 101 + 2], manual, atol=1e-4)
+
+
+def _vit_flops(c: ViTConfig) -> int:
+    """Matmul/conv/attention FLOPs of one window through one ViT, by hand."""
+    n, w, h = c.num_prefix + c.num_patches, c.width, int(c.width * c.mlp_ratio)
+    conv = 2 * c.num_patches * c.patch * c.patch * w
+    block = 2 * n * (3 * w * w + w * w + 2 * w * h) + 2 * 2 * n * n * w
+    return conv + c.depth * block
+
+
+def test_paper_sizes_and_flops(capsys):
+    cfg = SpeechModelConfig.preset("paper", num_speakers=30)
+    with torch.device("meta"):
+        model = SpeechDisentangler(cfg)
+    counts = model.count_parameters()
+    with capsys.disabled():
+        print("\npaper parameters:", {k: f"{v / 1e6:.2f} M" for k, v in counts.items()})
+    for name in ("content_encoder", "emotion_encoder", "style_encoder"):
+        assert 85e6 <= counts[name] <= 88e6, (name, counts[name])
+    assert counts["total"] == sum(v for k, v in counts.items() if k != "total")
+    assert counts["emotion_encoder"] - counts["content_encoder"] == 768 * 8 + 8
+    assert counts["style_encoder"] - counts["content_encoder"] == 768 * 30 + 30
+    flops = flops_per_window(cfg)
+    with capsys.disabled():
+        print("paper GFLOPs/window:", {k: round(v / 1e9, 1) for k, v in flops.items()})
+    head = 2 * 768 * 256
+    assert flops["content_encoder"] == _vit_flops(cfg.encoder) + head
+    assert 250e9 < flops["content_encoder"] < 275e9
+
+
+def test_tiny_flops_match_hand_count(tiny):
+    flops = tiny.flops_per_window()
+    c = tiny.config
+    assert flops["content_encoder"] == _vit_flops(c.encoder) + 2 * c.encoder.width * 256
+    assert flops["emotion_encoder"] == flops["content_encoder"] + 2 * c.encoder.width * 8
+    assert flops["total"] == sum(v for k, v in flops.items() if k != "total")
+    assert flops["fusion"] > 0 and flops["decoder"] > 0
+
+
+def test_fusion_and_decoder_keep_samples_apart(tiny):
+    g = _gen(3)
+    c, e, s = (torch.randn(4, 256, generator=g) for _ in range(3))
+    fused = tiny.fusion(c, e, s)
+    recon = tiny.decode(c, e, s)
+    c2, e2, s2 = (v.clone() for v in (c, e, s))
+    for v in (c2, e2, s2):
+        v[1:] = torch.randn(3, 256, generator=g) * 5
+    assert torch.allclose(tiny.fusion(c2, e2, s2)[0], fused[0], atol=1e-6)
+    assert torch.allclose(tiny.decode(c2, e2, s2)[0], recon[0], atol=1e-5)
+    assert not torch.allclose(tiny.fusion(c2, e2, s2)[1], fused[1], atol=1e-3)  # the others did change
+    assert torch.allclose(tiny.fusion(c[:1], e[:1], s[:1]), fused[:1], atol=1e-6)  # batch of one agrees
+
+
+def test_swap_index_maps_match_the_paper():
+    assert sl.EMOTION_STYLE_PARTNER == (1, 0, 3, 2)
+    assert sl.CONTENT_PARTNER == (2, 3, 0, 1)
+    # supp. B.4, 1-based: j(k) = [(6 - k) mod 4] + 1 for emotion/style, [(1 + k) mod 4] + 1 for content
+    assert tuple((6 - k) % 4 for k in range(1, 5)) == sl.EMOTION_STYLE_PARTNER
+    assert tuple((1 + k) % 4 for k in range(1, 5)) == sl.CONTENT_PARTNER
+
+
+def test_fused_l1_matches_autograd_reference():
+    g = _gen(10)
+    pred = torch.randn(2, 3, 4, 5, 6, generator=g, requires_grad=True)
+    target = torch.randn(2, 1, 4, 5, 6, generator=g)
+    w = torch.tensor([1.0, 2.0, 0.5])
+    ref = (pred - target).abs().mean(dim=(0, 2, 3, 4))
+    (ref_grad,) = torch.autograd.grad((ref * w).sum(), pred)
+    got = sl._MeanAbsError.apply(pred, target)
+    (got_grad,) = torch.autograd.grad((got * w).sum(), pred)
+    assert torch.allclose(got, ref) and torch.allclose(got_grad, ref_grad)
+
+
+class StubModel:
+    """encode reads rows 0/1/2 of a window as content/emotion/style; decode writes them back.
+
+    Emotion logits are the first 8 entries of the emotion row, speaker logits the first 5 of the style row.
+    """
+
+    def __init__(self, noise: float = 0.0):
+        self.noise = noise
+        self.decoded: list[int] = []
+
+    def encode(self, x):
+        e, s = x[:, 1], x[:, 2]
+        return SpeechEncoding(x[:, 0], e, s, e[:, :8], s[:, :5])
+
+    def decode(self, c, e, s):
+        self.decoded.append(c.shape[0])
+        y = torch.stack([c, e, s], dim=1)
+        return y * (1 + self.noise) + self.noise  # imperfect, and independent of the batch layout
+
+
+def _toy_quadruples(b: int = 3):
+    """fbank [B, 4, 3, 16] consistent with (c1 s1, c2 s1, c1 s2, c2 s2), one emotion per quadruple."""
+    g = _gen(4)
+    emotion = torch.randint(0, 8, (b,), generator=g)
+    speaker = torch.randint(0, 5, (b, 2), generator=g)
+    content = torch.randn(b, 2, 16, generator=g)
+    # each speaker voices the shared emotion in its own way (entries 8:), so swapping emotion latents is
+    # only harmless between windows of the same speaker: a wrong partner map shows up as a positive loss
+    emo_vec = torch.cat([50 * F.one_hot(emotion, 8).float()[:, None].expand(b, 2, 8),
+                         torch.randn(b, 2, 8, generator=g)], 2)
+    sty_vec = torch.cat([50 * F.one_hot(speaker, 5).float(), torch.randn(b, 2, 11, generator=g)], 2)
+    rows = []
+    for ci, si in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        rows.append(torch.stack([content[:, ci], emo_vec[:, si], sty_vec[:, si]], dim=1))
+    fbank = torch.stack(rows, dim=1)
+    return fbank, emotion, speaker[:, [0, 0, 1, 1]]
+
+
+TERMS = ("self_recon", "content", "emotion", "style", "cross_emotion", "cross_style", "cross_content")
+
+
+def _zero_terms(out):
+    return {k for k in TERMS if float(out[k]) < 1e-6}
+
+
+def test_losses_vanish_for_a_perfect_model():
+    fbank, emotion, speaker = _toy_quadruples()
+    out = speech_losses(StubModel(), fbank, emotion, speaker)
+    assert set(out) == set(TERMS) | {"total"}
+    assert _zero_terms(out) == set(TERMS) and float(out["total"]) < 1e-5
+
+
+@pytest.mark.parametrize(
+    "row, window, positive",
+    [
+        (1, 1, {"cross_emotion"}),  # a2's emotion latent differs from a1's: only the emotion swap notices
+        (2, 1, {"cross_style"}),  # a2's style latent differs from a1's (same speaker): only the style swap
+        (0, 2, {"content", "cross_content"}),  # a3's content differs from a1's
+    ],
+)
+def test_each_swap_term_uses_its_partner(row, window, positive):
+    fbank, emotion, speaker = _toy_quadruples()
+    fbank[:, window, row, 8:] += 1.0  # outside the logit entries: labels stay right
+    out = speech_losses(StubModel(), fbank, emotion, speaker)
+    assert set(TERMS) - _zero_terms(out) == positive
+
+
+def test_terms_are_positive_for_imperfect_models():
+    fbank, emotion, speaker = _toy_quadruples()
+    out = speech_losses(StubModel(noise=0.1), fbank, emotion, speaker)
+    assert set(TERMS) - _zero_terms(out) == {"self_recon", "cross_emotion", "cross_style", "cross_content"}
+    out = speech_losses(StubModel(), fbank, (emotion + 1) % 8, speaker)
+    assert set(TERMS) - _zero_terms(out) == {"emotion"}
+    out = speech_losses(StubModel(), fbank, emotion, (speaker + 1) % 5)
+    assert set(TERMS) - _zero_terms(out) == {"style"}
+
+
+@pytest.mark.parametrize("term", TERMS)
+def test_a_switched_off_term_is_absent_and_not_computed(term, monkeypatch):
+    fbank, emotion, speaker = _toy_quadruples()
+    fbank[:, 2, 0] += 0.5  # make L_con and L_xcon positive too
+    ce_calls = []
+    real_ce = F.cross_entropy
+    monkeypatch.setattr(F, "cross_entropy", lambda *a, **k: ce_calls.append(1) or real_ce(*a, **k))
+    stub = StubModel(noise=0.1)
+    full = speech_losses(stub, fbank, (emotion + 1) % 8, (speaker + 1) % 5)
+    assert all(float(full[t]) > 1e-3 for t in TERMS)
+    ce_calls.clear()
+    stub.decoded.clear()
+    out = speech_losses(stub, fbank, (emotion + 1) % 8, (speaker + 1) % 5, SpeechLossConfig(**{term: 0.0}))
+    assert term not in out
+    expected = sum(float(full[t]) for t in TERMS if t != term)
+    assert float(out["total"]) == pytest.approx(expected, rel=1e-5)
+    n_recon = sum(t in sl.RECONSTRUCTIONS for t in TERMS if t != term)
+    assert stub.decoded == [n_recon * 4 * fbank.shape[0]]  # one batched decode of the active swaps
+    assert len(ce_calls) == (1 if term in ("emotion", "style") else 2)
+
+
+def test_configs_round_trip_and_reject_unknown_keys():
+    from emogesture.config import from_dict, to_dict
+    from emogesture.errors import ConfigError
+
+    for name in ("paper", "tiny"):
+        cfg = SpeechModelConfig.preset(name, num_speakers=7)
+        assert from_dict(SpeechModelConfig, to_dict(cfg)) == cfg
+    with pytest.raises(ConfigError, match="unknown key"):
+        from_dict(SpeechModelConfig, {"encoder": {"widht": 3}})
+    with pytest.raises(ConfigError, match="divisible"):
+        ViTConfig(width=100, heads=3)
+    assert from_dict(SpeechLossConfig, {"style": 0}).active() == [t for t in TERMS if t != "style"]
+
+
+def test_loss_weights_and_presets():
+    fbank, emotion, speaker = _toy_quadruples()
+    stub = StubModel(noise=0.1)
+    ref = speech_losses(stub, fbank, emotion, speaker)
+    out = speech_losses(stub, fbank, emotion, speaker, SpeechLossConfig(self_recon=2.0, cross_style=0.5))
+    expected = sum(float(ref[t]) for t in TERMS) + float(ref["self_recon"]) - 0.5 * float(ref["cross_style"])
+    assert float(out["total"]) == pytest.approx(expected, rel=1e-5)
+    assert set(SpeechLossConfig.preset("emotion_only").active()) == set(TERMS) - {"style", "cross_style"}
+    assert set(SpeechLossConfig.preset("style_only").active()) == set(TERMS) - {"emotion", "cross_emotion"}
+    assert SpeechLossConfig.preset("full").active() == list(TERMS)
+
+
+def test_gradients_reach_all_three_encoders():
+    torch.manual_seed(1)
+    model = SpeechDisentangler(SpeechModelConfig.preset("tiny", num_speakers=5))
+    g = _gen(5)
+    fbank = torch.randn(1, 4, 1024, 128, generator=g) * 0.5
+    out = speech_losses(model, fbank, torch.tensor([3]), torch.tensor([[0, 0, 4, 4]]))
+    out["total"].backward()
+    for name in ("content_encoder", "emotion_encoder", "style_encoder", "fusion", "decoder"):
+        for pname, p in getattr(model, name).named_parameters():
+            assert p.grad is not None and p.grad.abs().sum() > 0, f"{name}.{pname} gets no gradient"
+
+
+# ---------------------------------------------------------------- pretrained weights
+
+
+def _synthetic_deit(depth: int = 2, width: int = 768) -> dict[str, torch.Tensor]:
+    """Random tensors in timm's deit_base_distilled_patch16_384 layout (reduced depth)."""
+    g = _gen(6)
+    shapes = {"patch_embed.proj.weight": [width, 3, 16, 16], "patch_embed.proj.bias": [width],
+              "cls_token": [1, 1, width], "dist_token": [1, 1, width], "pos_embed": [1, 2 + 24 * 24, width],
+              "norm.weight": [width], "norm.bias": [width], "head.weight": [1000, width], "head.bias": [1000],
+              "head_dist.weight": [1000, width], "head_dist.bias": [1000]}
+    sd = {k: torch.randn(*shape, generator=g) for k, shape in shapes.items()}
+    shapes = {"norm1": [width], "attn.qkv": [3 * width, width], "attn.proj": [width, width], "norm2": [width],
+              "mlp.fc1": [4 * width, width], "mlp.fc2": [width, 4 * width]}
+    for i in range(depth):
+        for mod, shape in shapes.items():
+            sd[f"blocks.{i}.{mod}.weight"] = torch.randn(*shape, generator=g)
+            sd[f"blocks.{i}.{mod}.bias"] = torch.randn(shape[0], generator=g)
+    return sd
+
+
+def _time_interp(grid: np.ndarray, size: int) -> np.ndarray:
+    """Linear resampling of the last axis with half-pixel centres, written out by hand."""
+    n = grid.shape[-1]
+    src = np.clip((np.arange(size) + 0.5) * n / size - 0.5, 0, n - 1)
+    i0 = np.floor(src).astype(int)
+    i1 = np.minimum(i0 + 1, n - 1)
+    w = src - i0
+    return grid[..., i0] * (1 - w) + grid[..., i1] * w
+
+
+@pytest.fixture(scope="module")
+def deit_and_vit():
+    sd = _synthetic_deit()
+    vit = AudioViT(ViTConfig(width=768, depth=2, heads=12))
+    init_encoder_from_pretrained(vit, adapt_deit_to_audio(sd, vit.config))
+    return sd, vit
+
+
+def test_deit_weights_land_where_they_should(deit_and_vit):
+    sd, vit = deit_and_vit
+    got = vit.state_dict()
+    assert torch.allclose(got["patch_embed.proj.weight"], sd["patch_embed.proj.weight"].mean(1, keepdim=True))
+    for key in ("patch_embed.proj.bias", "cls_token", "dist_token", "norm.weight", "blocks.1.attn.qkv.weight",
+                "blocks.0.mlp.fc2.bias", "blocks.1.norm2.weight"):
+        assert torch.equal(got[key], sd[key]), key
+    pos, old = got["pos_embed"], sd["pos_embed"]
+    assert pos.shape == (1, 2 + 12 * 101, 768)
+    assert torch.equal(pos[:, :2], old[:, :2])
+    new_grid = pos[0, 2:].reshape(12, 101, 768)
+    old_grid = old[0, 2:].reshape(24, 24, 768)
+    # frequency: centre crop rows 6..17; time: the end columns map exactly onto the old ones
+    assert torch.allclose(new_grid[0, 0], old_grid[6, 0]) and torch.allclose(new_grid[11, 100], old_grid[17, 23])
+    assert torch.allclose(new_grid[0, 100], old_grid[6, 23]) and torch.allclose(new_grid[11, 0], old_grid[17, 0])
+    expected = _time_interp(old_grid[6:18].permute(0, 2, 1).numpy().astype(np.float64), 101)
+    assert np.allclose(new_grid.permute(0, 2, 1).numpy(), expected, atol=1e-5)
+
+
+def test_deit_sum_option_and_interpolated_frequency():
+    sd = _synthetic_deit(depth=1, width=64)
+    cfg = ViTConfig(width=64, depth=1, heads=2)
+    out = adapt_deit_to_audio(sd, cfg, channel_reduce="sum", freq_resize="interpolate")
+    assert torch.allclose(out["patch_embed.proj.weight"], sd["patch_embed.proj.weight"].sum(1, keepdim=True))
+    grid = out["pos_embed"][0, 2:].reshape(12, 101, 64)
+    old = sd["pos_embed"][0, 2:].reshape(24, 24, 64)
+    assert torch.allclose(grid[0, 0], old[:2, 0].mean(0), atol=1e-5)  # 24 -> 12 averages row pairs
+    assert not any(k.startswith("head") for k in out)
+
+
+def test_pretrained_key_errors_are_clear():
+    sd = _synthetic_deit(depth=1, width=64)
+    vit = AudioViT(ViTConfig(width=64, depth=1, heads=2))
+    adapted = adapt_deit_to_audio(sd, vit.config)
+    missing = {k: v for k, v in adapted.items() if k != "blocks.0.mlp.fc2.bias"}
+    with pytest.raises(EmogestureError, match=r"lack 'blocks\.0\.mlp\.fc2\.bias' \(expected shape \[64\]\)"):
+        init_encoder_from_pretrained(vit, missing)
+    wrong = dict(adapted, **{"norm.weight": torch.zeros(70)})
+    with pytest.raises(EmogestureError, match=r"'norm\.weight' has shape \[70\], the encoder expects \[64\]"):
+        init_encoder_from_pretrained(vit, wrong)
+    with pytest.raises(EmogestureError, match=r"12 key\(s\) the encoder does not have, e.g. .blocks\.1\."):
+        init_encoder_from_pretrained(vit, adapt_deit_to_audio(_synthetic_deit(depth=2, width=64), vit.config))
+    with pytest.raises(EmogestureError, match=r"shape \[64, 3, 16, 16\]; the encoder uses 32x32"):
+        adapt_deit_to_audio(sd, ViTConfig(width=64, depth=1, heads=2, patch=32, stride=32))
+
+
+def test_load_state_dict_files(tmp_path):
+    from safetensors.torch import save_file
+
+    sd = _synthetic_deit(depth=1, width=32)
+    torch.save({"model": sd, "epoch": 3}, tmp_path / "deit.pth")
+    save_file(sd, str(tmp_path / "deit.bin"))  # safetensors content under another name
+    for name in ("deit.pth", "deit.bin"):
+        loaded = load_deit_state_dict(tmp_path / name)
+        assert set(loaded) == set(sd) and all(torch.equal(loaded[k], sd[k]) for k in sd)
+    missing = tmp_path / "nope.pth"
+    with pytest.raises(InputFileError) as err:
+        load_deit_state_dict(missing)
+    assert str(err.value) == f"{missing}: pretrained weights file not found"
+    (tmp_path / "junk.pth").write_bytes(b"not a checkpoint at all")
+    with pytest.raises(InputFileError) as err:
+        load_deit_state_dict(tmp_path / "junk.pth")
+    assert str(err.value).startswith(f"{tmp_path / 'junk.pth'}: cannot read") and "\n" not in str(err.value)
+
+
+def test_ast_checkpoint_copies_or_resizes():
+    g = _gen(7)
+    cfg = ViTConfig(width=32, depth=1, heads=2)
+    vit = AudioViT(cfg)
+    ast = {f"module.v.{k}": torch.randn(v.shape, generator=g) for k, v in vit.state_dict().items()}
+    ast["module.mlp_head.1.weight"] = torch.randn(527, 32, generator=g)
+    init_encoder_from_pretrained(vit, adapt_ast_checkpoint(ast, cfg))
+    assert all(torch.equal(v, ast[f"module.v.{k}"]) for k, v in vit.state_dict().items())
+    short = dict(ast, **{"module.v.pos_embed": torch.randn(1, 2 + 12 * 50, 32, generator=g)})  # 512 frames
+    pos = adapt_ast_checkpoint(short, cfg)["pos_embed"]
+    old = short["module.v.pos_embed"][0, 2:].reshape(12, 50, 32)
+    new = pos[0, 2:].reshape(12, 101, 32)
+    assert torch.allclose(new[:, 0], old[:, 0]) and torch.allclose(new[:, 100], old[:, 49])
+    expected = _time_interp(old.permute(0, 2, 1).numpy().astype(np.float64), 101)
+    assert np.allclose(new.permute(0, 2, 1).numpy(), expected, atol=1e-5)
