@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from emogesture import __version__
-from emogesture.cli import data_commands
+from emogesture.cli import data_commands, eval_commands, train_commands
 from emogesture.errors import EmogestureError
 
 
@@ -18,6 +18,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"emogesture {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     data_commands.register(sub)
+    train_commands.register(sub)
+    eval_commands.register(sub)
     return parser
 
 

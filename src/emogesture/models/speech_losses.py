@@ -99,7 +99,7 @@ class _MeanAbsError(torch.autograd.Function):
 
 def speech_losses(
     model, fbank: torch.Tensor, emotion: torch.Tensor, speaker: torch.Tensor,
-    config: SpeechLossConfig | None = None,
+    config: SpeechLossConfig | None = None, target: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Disentanglement losses of a batch of quadruples.
 
@@ -109,6 +109,8 @@ def speech_losses(
         emotion: ``[B]`` emotion class of each quadruple (shared by its four windows).
         speaker: ``[B, 4]`` speaker class of each window.
         config: term weights; ``None`` means :meth:`SpeechLossConfig.preset` ``"full"``.
+        target: ``[B, 4, T, F]`` reconstruction targets when ``fbank`` is augmented (the clean
+            windows); ``None`` reconstructs ``fbank`` itself.
 
     Returns:
         A dict with a scalar per switched-on term (unweighted) and ``total`` (the weighted sum).
@@ -133,7 +135,7 @@ def speech_losses(
                for part in range(3)]
         picked = [v[:, ix].reshape(b * len(ix), -1) for v, ix in zip(lat, idx)]
         decoded = model.decode(*picked).reshape(b, len(recon), 4, t, f)
-        errors = _MeanAbsError.apply(decoded, fbank.unsqueeze(1))
+        errors = _MeanAbsError.apply(decoded, (fbank if target is None else target).unsqueeze(1))
         out.update({name: errors[i] for i, name in enumerate(recon)})
     if "content" in active:
         out["content"] = (lat[0][:, :2] - lat[0][:, 2:]).abs().mean()

@@ -1,0 +1,55 @@
+"""``emogesture evaluate ...`` and ``emogesture model-info ...``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    ev = sub.add_parser("evaluate", help="evaluate a trained model")
+    esub = ev.add_subparsers(dest="model", required=True, metavar="MODEL")
+    p = esub.add_parser("speech", help="EA/EF1/SA/SF1, reconstruction errors, linear probes, confusion matrices")
+    p.add_argument("run", type=Path, help="run folder of `emogesture train speech`")
+    p.add_argument("--data", required=True, type=Path, help="windows cache")
+    p.add_argument("--split", default="test", help="split to evaluate (default test)")
+    p.add_argument("--out", type=Path, help="output folder (default RUN/eval)")
+    p.add_argument("--quadruples", type=int, default=128, help="test quadruples for reconstruction errors")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports")
+    p.set_defaults(func=run_evaluate_speech)
+
+    info = sub.add_parser("model-info", help="parameter counts and FLOPs of a model preset")
+    isub = info.add_subparsers(dest="model", required=True, metavar="MODEL")
+    p = isub.add_parser("speech", help="the speech disentanglement model")
+    p.add_argument("--preset", default="paper", choices=["paper", "tiny"])
+    p.add_argument("--speakers", type=int, default=30, help="speaker classes (default 30, BEAT)")
+    p.set_defaults(func=run_model_info_speech)
+
+
+def run_evaluate_speech(args: argparse.Namespace) -> int:
+    from emogesture.eval.speech import evaluate_speech, speech_markdown
+
+    result = evaluate_speech(args.run, args.data, args.split, args.out, args.quadruples, args.seed,
+                             overwrite=args.overwrite)
+    print(speech_markdown(result))
+    return 0
+
+
+def run_model_info_speech(args: argparse.Namespace) -> int:
+    import torch
+
+    from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig, flops_per_window
+
+    config = SpeechModelConfig.preset(args.preset, num_speakers=args.speakers)
+    with torch.device("meta"):
+        model = SpeechDisentangler(config)
+    counts = model.count_parameters()
+    flops = flops_per_window(config)
+    print(f"speech disentanglement model, preset {args.preset} ({args.speakers} speakers)")
+    print(f"{'component':<18}{'parameters':>16}{'GFLOPs / 10-s window':>24}")
+    for name, n in counts.items():
+        f = flops.get(name)
+        print(f"{name:<18}{n:>16,}{(f'{f / 1e9:.3f}' if f is not None else '-'):>24}")
+    print("FLOPs counted by torch.utils.flop_counter (a multiply-add is 2 FLOPs): encode + self-reconstruction.")
+    return 0

@@ -1,0 +1,55 @@
+"""``emogesture train ...``: one command shape for every model."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from emogesture.config import load_config, to_dict
+
+
+def _engine_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
+    p.add_argument("--out", required=True, type=Path, help="run folder (re-running the same command resumes)")
+    p.add_argument("--config", type=Path, help="YAML file of training settings (merged over the preset)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a setting, e.g. --set lr=1e-4 --set model.encoder.depth=4")
+    p.add_argument("--steps", type=int, default=1000, help="total optimisation steps (default 1000)")
+    p.add_argument("--devices", type=int, default=1, help="processes / GPUs; >1 uses DDP")
+    p.add_argument("--accelerator", default="cpu", choices=["cpu", "gpu", "auto"], help="default cpu")
+    p.add_argument("--precision", default="32-true", help="32-true (default) or bf16-mixed")
+    p.add_argument("--checkpoint-every", type=int, default=200, help="steps between checkpoints (default 200)")
+    p.add_argument("--seed", type=int, default=0, help="seed of weights, sampling and augmentation")
+    p.add_argument("--overwrite", action="store_true", help="start the run folder again from scratch")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    train = sub.add_parser("train", help="train a model (speech)")
+    tsub = train.add_subparsers(dest="model", required=True, metavar="MODEL")
+    p = tsub.add_parser("speech", help="the speech disentanglement model (content / emotion / style)")
+    p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
+    p.add_argument("--losses", default="full", choices=["full", "emotion_only", "style_only"],
+                   help="loss terms: full, or one of the paper's two ablations")
+    _engine_args(p)
+    p.set_defaults(func=run_train_speech)
+
+
+def run_train_speech(args: argparse.Namespace) -> int:
+    from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
+    from emogesture.train.speech import SpeechTrainConfig, build
+
+    base = to_dict(SpeechTrainConfig.preset(args.preset, args.losses))
+    config = load_config(SpeechTrainConfig, args.config, args.overrides, base=base)
+    settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=args.accelerator,
+                           precision=args.precision, checkpoint_every=args.checkpoint_every,
+                           progress=not args.quiet, seed=args.seed)
+    blob = {"command": "train speech", "config": to_dict(config), "data": str(args.data.resolve()),
+            "seed": args.seed, "precision": args.precision}
+    resume = check_run_dir(args.out, blob, args.overwrite)
+    data, module, export = build(config, args.data, args.seed)
+    trainer = make_trainer(args.out, settings, lambda m: export(m, args.out))
+    fit(trainer, module, data, args.out, resume)
+    if trainer.is_global_zero:
+        print(f"speech model: {args.out / 'model.json'} (step {trainer.global_step})")
+    return 0

@@ -1,0 +1,141 @@
+"""``emogesture evaluate speech``: supp. Tables A.1 (EA, EF1, SA, SF1) and A.2 (reconstruction errors).
+
+Also linear probes of each latent for emotion and speaker, the disentanglement check: emotion should
+be readable from the emotion latent and not from the style latent, and the reverse for speaker.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import open_cache
+from emogesture.data.quadruples import QuadrupleIndex
+from emogesture.errors import EmogestureError, OutputExistsError
+from emogesture.eval.classification import classification_report
+from emogesture.eval.plots import save_confusion_matrix
+from emogesture.eval.probes import linear_probe_accuracy
+from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
+from emogesture.pipeline.speech import SpeechLatentEncoder
+
+RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_emotion", "XSty": "cross_style"}
+
+
+@torch.no_grad()
+def reconstruction_errors(encoder: SpeechLatentEncoder, windows, num_quadruples: int, seed: int,
+                          batch_size: int = 8) -> dict[str, float]:
+    """Mean L1 filterbank errors Self, XCon, XEmo, XSty over seeded test quadruples."""
+    index = QuadrupleIndex(windows)
+    rng = np.random.default_rng(seed)
+    speakers = {s: i for i, s in enumerate(encoder.speakers)}
+    sums = {k: 0.0 for k in RECON_COLUMNS}
+    done = 0
+    cfg = SpeechLossConfig(content=0.0, emotion=0.0, style=0.0)
+    while done < num_quadruples:
+        qs = [index.draw(rng) for _ in range(min(batch_size, num_quadruples - done))]
+        fb = torch.from_numpy(np.stack([[np.asarray(windows.fbank[j], np.float32) for j in q.indices] for q in qs]))
+        emo = torch.tensor([q.emotion for q in qs])
+        spk = torch.tensor([[speakers.get(s, 0) for s in q.speakers] for q in qs])
+        out = speech_losses(encoder.model, fb.to(encoder.device), emo, spk, cfg)
+        for col, key in RECON_COLUMNS.items():
+            sums[col] += float(out[key]) * len(qs)
+        done += len(qs)
+    return {k: v / done for k, v in sums.items()}
+
+
+def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Path | None = None,
+                    num_quadruples: int = 128, seed: int = 0, probe_train_windows: int = 4000,
+                    overwrite: bool = False) -> dict:
+    """Evaluate a speech model run on a cache split; writes JSON, markdown and confusion PNGs."""
+    t0 = time.monotonic()
+    out_dir = Path(out_dir) if out_dir else Path(run) / "eval"
+    stem = f"speech_{split}"
+    outputs = [out_dir / f"{stem}.json", out_dir / f"{stem}.md"]
+    if not overwrite:
+        for p in outputs:
+            if p.exists():
+                raise OutputExistsError(p)
+    encoder = SpeechLatentEncoder.from_run(run)
+    cache = open_cache(cache_dir)
+    test = cache.split(split)
+    enc = encoder.encode_split(cache, split)
+    emo_rep = classification_report(test.emotion, enc.emotion_logits.argmax(1), len(EMOTIONS))
+    spk_class = {s: i for i, s in enumerate(encoder.speakers)}
+    known = np.array([s in spk_class for s in test.speaker_id.tolist()])
+    if not known.any():
+        raise EmogestureError(f"{cache_dir}: none of the {split} speakers were seen in training; no speaker accuracy")
+    spk_true = np.array([spk_class[s] for s in test.speaker_id[known].tolist()])
+    spk_rep = classification_report(spk_true, enc.speaker_logits[known].argmax(1), len(spk_class))
+
+    # linear probes: fit on (a seeded subset of) training windows, score on the split
+    train = cache.split("train")
+    tr_enc = encoder.encode_split(cache, "train")
+    rng = np.random.default_rng(seed)
+    sub = np.sort(rng.permutation(len(train))[:probe_train_windows])
+    probes = {}
+    for latent in ("content", "emotion", "style"):
+        x_tr, x_te = getattr(tr_enc, latent)[sub], getattr(enc, latent)
+        probes[f"emotion_from_{latent}"] = linear_probe_accuracy(x_tr, train.emotion[sub], x_te, test.emotion)
+        probes[f"speaker_from_{latent}"] = linear_probe_accuracy(x_tr, train.speaker_id[sub], x_te, test.speaker_id)
+
+    recon = reconstruction_errors(encoder, test, num_quadruples, seed)
+    result = {
+        "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test),
+        "step": encoder.loaded.extra.get("step"),
+        "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"],
+        "SA": spk_rep["accuracy"], "SF1": spk_rep["macro_f1"], "speaker_windows": int(known.sum()),
+        "reconstruction_l1": recon,
+        "reconstruction_relative_to_self": {k: v / recon["Self"] for k, v in recon.items()},
+        "linear_probes": probes,
+        "constants": {"num_quadruples": num_quadruples, "seed": seed, "probe_train_windows": int(len(sub)),
+                      "probe": "standardised multinomial logistic regression, C=1"},
+        "seconds": round(time.monotonic() - t0, 1),
+    }
+    out_dir.mkdir(parents=True, exist_ok=True)
+    save_confusion_matrix(emo_rep["confusion"], list(EMOTIONS), out_dir / f"{stem}_emotion_confusion.png",
+                          title=f"emotion ({split}), EA {result['EA']:.3f}", overwrite=overwrite)
+    save_confusion_matrix(spk_rep["confusion"], [str(s) for s in encoder.speakers],
+                          out_dir / f"{stem}_speaker_confusion.png", title=f"speaker ({split}), SA {result['SA']:.3f}",
+                          overwrite=overwrite)
+    _write(outputs[0], json.dumps(result, indent=1, default=_jsonable))
+    _write(outputs[1], speech_markdown(result))
+    return result
+
+
+def speech_markdown(r: dict) -> str:
+    rec, rel, pr = r["reconstruction_l1"], r["reconstruction_relative_to_self"], r["linear_probes"]
+    lines = [
+        f"# Speech disentanglement: {r['split']} split ({r['windows']} windows, step {r['step']})", "",
+        "Classification (supp. Table A.1 layout)", "",
+        "| EA | EF1 | SA | SF1 |", "|---|---|---|---|",
+        f"| {r['EA']:.3f} | {r['EF1']:.3f} | {r['SA']:.3f} | {r['SF1']:.3f} |", "",
+        "Reconstruction L1 on the normalised filterbank (supp. Table A.2 layout; ratio to Self below)", "",
+        "| Self | XCon | XEmo | XSty |", "|---|---|---|---|",
+        "| " + " | ".join(f"{rec[k]:.4f}" for k in RECON_COLUMNS) + " |",
+        "| " + " | ".join(f"{rel[k]:.3f}" for k in RECON_COLUMNS) + " |", "",
+        "Linear probes (held-out accuracy; chance = 1/classes)", "",
+        "| latent | emotion | speaker |", "|---|---|---|",
+    ]
+    for latent in ("content", "emotion", "style"):
+        lines.append(f"| {latent} | {pr[f'emotion_from_{latent}']:.3f} | {pr[f'speaker_from_{latent}']:.3f} |")
+    lines += ["", f"Constants: {json.dumps(r['constants'])}", ""]
+    return "\n".join(lines)
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    raise TypeError(type(x))
+
+
+def _write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)

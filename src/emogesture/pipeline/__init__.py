@@ -1,0 +1,1 @@
+"""Inference pipelines: audio to latents, latents to motion, generation and editing."""

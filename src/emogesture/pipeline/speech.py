@@ -1,0 +1,105 @@
+"""Audio -> (content, emotion, style) latents with a trained speech disentanglement model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from emogesture.audio import FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank, window_starts
+from emogesture.checkpoints import LoadedModel, load_model
+from emogesture.config import from_dict
+from emogesture.data.cache import WindowsCache
+from emogesture.models.speech import AudioLatents
+
+FBANK_RATE = 100  # frames per second
+
+
+@dataclass
+class EncodedWindows:
+    """Latents of ``W`` windows: ``content/emotion/style [W, 256]``, logits ``[W, 8]`` / ``[W, n]``."""
+
+    content: np.ndarray
+    emotion: np.ndarray
+    style: np.ndarray
+    emotion_logits: np.ndarray
+    speaker_logits: np.ndarray
+
+    @property
+    def latents(self) -> AudioLatents:
+        return AudioLatents(*(torch.from_numpy(x) for x in (self.content, self.emotion, self.style)))
+
+
+class SpeechLatentEncoder:
+    """A frozen speech model in eval mode: deterministic, batched, no gradients."""
+
+    def __init__(self, loaded: LoadedModel, device: str = "cpu") -> None:
+        self.loaded = loaded
+        self.model = loaded.model.to(device).eval()
+        self.device = device
+        self.fbank_mean = float(loaded.extra["fbank_mean"])
+        self.fbank_std = float(loaded.extra["fbank_std"])
+        prep = loaded.extra.get("prepare_config", {})
+        self.fbank_config = from_dict(FbankConfig, prep["fbank"]) if "fbank" in prep else FbankConfig()
+        self.window_frames = loaded.config.encoder.input_frames
+
+    @classmethod
+    def from_run(cls, path: str | PathLike[str], device: str = "cpu") -> "SpeechLatentEncoder":
+        return cls(load_model(path, "speech", device=device), device)
+
+    @property
+    def speakers(self) -> list[int]:
+        return list(self.loaded.extra["speakers"])
+
+    @torch.no_grad()
+    def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None
+                       ) -> EncodedWindows:
+        """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
+
+        ``renormalise=(mean, std)``: the windows were normalised with these statistics (another cache's);
+        they are mapped to the model's own statistics first.
+        """
+        parts: list[list[np.ndarray]] = [[] for _ in range(5)]
+        for i in range(0, len(windows), batch_size):
+            x = torch.from_numpy(np.asarray(windows[i : i + batch_size], np.float32)).to(self.device)
+            if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
+                raw = x * (2 * renormalise[1]) + renormalise[0]
+                x = (raw - self.fbank_mean) / (2 * self.fbank_std)
+            enc = self.model.encode(x)
+            for store, value in zip(parts, enc):
+                store.append(value.float().cpu().numpy())
+        return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in parts))
+
+    def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0
+               ) -> tuple[EncodedWindows, list[float]]:
+        """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s)."""
+        if sample_rate != self.fbank_config.sample_rate:
+            raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
+        fb = kaldi_fbank(waveform, self.fbank_config)
+        fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
+        starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
+        frames = [int(round(s * FBANK_RATE)) for s in starts]
+        windows = fbank_windows(fb, frames, self.window_frames)
+        return self.encode_windows(np.asarray(windows)), starts
+
+    def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
+        """Latents of every window of a prepared split, cached next to the model file.
+
+        The cache file is keyed by the model's weights checksum and the cache's digest, so a changed
+        model or cache is never served stale latents.
+        """
+        key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}"
+        path = Path(self.loaded.path).parent / "latents" / f"{key}.npz"
+        if path.is_file():
+            with np.load(path) as z:
+                return EncodedWindows(*(z[k] for k in EncodedWindows.__dataclass_fields__))
+        windows = cache.split(split)
+        enc = self.encode_windows(windows.fbank, batch_size,
+                                  renormalise=(cache.stats["fbank_mean"], cache.stats["fbank_std"]))
+        from emogesture.motion import write_npz_atomic
+
+        write_npz_atomic(path, {k: getattr(enc, k) for k in EncodedWindows.__dataclass_fields__}, overwrite=True)
+        return enc

@@ -1,0 +1,139 @@
+"""Training the speech disentanglement model (SPEC §2) with Lightning."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader
+
+from emogesture.audio import augment_fbank
+from emogesture.checkpoints import save_model
+from emogesture.config import from_dict, to_dict
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import open_cache
+from emogesture.data.datasets import SpeechQuadrupleDataset
+from emogesture.errors import ConfigError
+from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
+
+
+@dataclass
+class SpeechTrainConfig:
+    """Everything a speech-model run needs besides the engine settings; stored in the run."""
+
+    model: SpeechModelConfig = field(default_factory=lambda: SpeechModelConfig.preset("tiny"))
+    losses: SpeechLossConfig = field(default_factory=SpeechLossConfig)
+    batch_size: int = 16  # quadruples per step (x4 windows)
+    lr: float = 3e-4
+    weight_decay: float = 5e-7
+    betas: tuple[float, float] = (0.95, 0.999)
+    lr_decay: float = 0.85  # the authors' x0.85 per epoch ...
+    lr_decay_every: int = 200  # ... with an "epoch" of this many steps ...
+    lr_decay_start: int = 1000  # ... from this step on
+    augment: bool = True
+    freq_mask: int = 24
+    time_mask: int = 96
+    noise_std: float = 0.05
+    max_shift: int = 10
+    samples_per_epoch: int = 4096
+    num_workers: int = 0
+
+    @classmethod
+    def preset(cls, size: str = "tiny", losses: str = "full") -> "SpeechTrainConfig":
+        """``size``: tiny | paper (the paper's encoders, the authors' lr 1e-5); ``losses``: full |
+        emotion_only | style_only (the two ablations of supp. Table A.1)."""
+        cfg = cls(model=SpeechModelConfig.preset(size), losses=SpeechLossConfig.preset(losses))
+        if size == "paper":
+            cfg.lr, cfg.batch_size, cfg.lr_decay_start, cfg.lr_decay_every = 1e-5, 8, 5 * 1000, 1000
+        return cfg
+
+
+class SpeechDataModule(L.LightningDataModule):
+    def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0):
+        super().__init__()
+        self.cache = open_cache(cache_dir)
+        self.train = self.cache.split("train")
+        self.speakers = sorted(set(self.train.speaker_id.tolist()))
+        self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed)
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
+                          num_workers=self.num_workers, persistent_workers=False)
+
+
+class SpeechModule(L.LightningModule):
+    """Wraps :class:`SpeechDisentangler` with the quadruple losses and the optimiser."""
+
+    def __init__(self, config: dict, seed: int = 0) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.cfg = from_dict(SpeechTrainConfig, config)
+        self.seed = seed
+        torch.manual_seed(seed)  # weight initialisation, reproducible per run seed
+        self.model = SpeechDisentangler(self.cfg.model)
+
+    def on_train_epoch_start(self) -> None:
+        loader = self.trainer.train_dataloader
+        if loader is not None and hasattr(loader.dataset, "epoch"):
+            loader.dataset.epoch = self.current_epoch
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        fbank = batch["fbank"]
+        inputs = fbank
+        if self.cfg.augment:
+            g = torch.Generator().manual_seed(int(np.random.SeedSequence(
+                [self.seed, self.global_step, self.global_rank]).generate_state(1)[0]))
+            b, k, t, f = fbank.shape
+            inputs = augment_fbank(fbank.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
+                                   self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
+        losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank)
+        self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
+                      batch_size=fbank.shape[0])
+        self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
+        return losses["total"]
+
+    def configure_optimizers(self):
+        c = self.cfg
+        opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, betas=tuple(c.betas), weight_decay=c.weight_decay)
+
+        def factor(step: int) -> float:
+            if step < c.lr_decay_start:
+                return 1.0
+            return c.lr_decay ** ((step - c.lr_decay_start) // c.lr_decay_every + 1)
+
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, factor)
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
+
+
+def speech_model_extra(cache, speakers: list[int], step: int) -> dict:
+    """What a speech model file carries besides weights: label tables and fbank statistics."""
+    return {
+        "emotions": list(EMOTIONS),
+        "speakers": speakers,
+        "fbank_mean": cache.stats["fbank_mean"],
+        "fbank_std": cache.stats["fbank_std"],
+        "prepare_config": cache.manifest["config"],
+        "step": step,
+    }
+
+
+def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
+    """Data module, Lightning module and export function of one run."""
+    data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers)
+    if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
+        raise ConfigError(
+            f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
+            f"({config.model.encoder.input_frames}, {config.model.encoder.input_bins})"
+        )
+    config.model.num_speakers = len(data.speakers)
+    module = SpeechModule(to_dict(config), seed)
+
+    def export(m: SpeechModule, run_dir: Path) -> None:
+        save_model(run_dir, "speech", m.model, m.cfg.model, speech_model_extra(data.cache, data.speakers, m.global_step))
+
+    return data, module, export
