@@ -50,6 +50,30 @@ class ExportModel(Callback):
             self.export(module)
 
 
+class RankDigest(Callback):
+    """With several processes, each rank writes a checksum of its weights at the end of training
+    (``rank_digests/rank<r>.txt``): data-parallel ranks must hold identical weights."""
+
+    def __init__(self, run_dir: Path) -> None:
+        self.run_dir = run_dir
+
+    def on_train_end(self, trainer: L.Trainer, module: L.LightningModule) -> None:
+        import hashlib
+
+        h = hashlib.sha256()
+        for name, value in sorted(module.state_dict().items()):
+            h.update(name.encode())
+            h.update(value.detach().cpu().contiguous().numpy().tobytes())
+        d = self.run_dir / "rank_digests"
+        d.mkdir(exist_ok=True)
+        (d / f"rank{trainer.global_rank}.txt").write_text(f"{trainer.global_step} {h.hexdigest()}\n")
+
+
+def checkpoint_step(path: Path) -> int:
+    """The global step stored in a Lightning checkpoint (read without unpickling objects)."""
+    return int(torch.load(path, map_location="cpu", weights_only=True)["global_step"])
+
+
 @dataclass
 class RunSettings:
     """Engine settings common to every ``emogesture train`` command."""
@@ -104,6 +128,8 @@ def make_trainer(run_dir: Path, settings: RunSettings, export, extra_callbacks: 
         monitor=None,
     )
     callbacks = [ckpt, ExportModel(export), *(extra_callbacks or [])]
+    if settings.devices > 1:
+        callbacks.append(RankDigest(run_dir))
     if settings.progress:
         callbacks.append(TQDMProgressBar(refresh_rate=max(1, settings.log_every // 4)))
     strategy: Any = "auto"
@@ -133,5 +159,7 @@ def fit(trainer: L.Trainer, module: L.LightningModule, datamodule: L.LightningDa
         resume: bool) -> None:
     """``trainer.fit``, resuming from ``last.ckpt`` when asked (weights-only loading)."""
     ckpt_path = last_checkpoint(run_dir) if resume else None
+    if ckpt_path is not None and trainer.is_global_zero:
+        print(f"resuming from {ckpt_path} at step {checkpoint_step(ckpt_path)}", flush=True)
     torch.set_float32_matmul_precision("high")
     trainer.fit(module, datamodule=datamodule, ckpt_path=str(ckpt_path) if ckpt_path else None, weights_only=True)

@@ -1,0 +1,85 @@
+"""Speech-model training through the command line: a short run, evaluation, resume after a kill, DDP."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from emogesture.data.beat import write_split_csv
+from emogesture.data.prepare import prepare
+from emogesture.train.engine import checkpoint_step
+
+sys.path.insert(0, str(Path(__file__).parent))
+from test_prepare import make_root  # noqa: E402
+
+
+def cli(*args):
+    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    d = tmp_path_factory.mktemp("speech")
+    names = make_root(d / "root", speakers=(1, 2, 3), takes=(1, 2, 3, 4, 65, 66, 67, 68))
+    write_split_csv(d / "root" / "train_test_split.csv",
+                    {n: "test" if n.split("_")[3] in ("3", "4", "67", "68") else "train" for n in names})
+    prepare(d / "root", d / "cache", progress=False)
+    return d / "cache"
+
+
+TRAIN = ("train", "speech", "--quiet", "--set", "batch_size=2", "--set", "samples_per_epoch=64")
+
+
+def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
+    run = tmp_path / "run"
+    out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 4), capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    meta = json.loads((run / "model.json").read_text())
+    assert meta["kind"] == "speech" and meta["extra"]["step"] == 4 and meta["extra"]["speakers"] == [1, 2, 3]
+    ev = subprocess.run(cli("evaluate", "speech", run, "--data", cache, "--quadruples", 4),
+                        capture_output=True, text=True)
+    assert ev.returncode == 0, ev.stderr[-2000:]
+    report = json.loads((run / "eval" / "speech_test.json").read_text())
+    assert set(report["reconstruction_l1"]) == {"Self", "XCon", "XEmo", "XSty"}
+    assert 0 <= report["EA"] <= 1 and (run / "eval" / "speech_test_emotion_confusion.png").stat().st_size > 0
+    again = subprocess.run(cli("evaluate", "speech", run, "--data", cache), capture_output=True, text=True)
+    assert again.returncode == 2 and "--overwrite" in again.stderr
+    other = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 4, "--set", "lr=0.1"),
+                           capture_output=True, text=True)
+    assert other.returncode == 2 and "other settings" in other.stderr and len(other.stderr.strip().splitlines()) == 1
+
+
+def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
+    run = tmp_path / "run"
+    args = cli(*TRAIN, "--data", cache, "--out", run, "--steps", 400, "--checkpoint-every", 3)
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    last = run / "checkpoints" / "last.ckpt"
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline and proc.poll() is None:
+        if last.is_file() and checkpoint_step(last) >= 6:
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.2)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    saved = checkpoint_step(last)  # the checkpoint survived the kill intact
+    assert saved >= 6 and not list(run.rglob("*.tmp"))
+    done = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 3, "--checkpoint-every", 3),
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert f"at step {saved}" in done.stdout
+    assert checkpoint_step(last) == saved + 3
+    assert json.loads((run / "model.json").read_text())["extra"]["step"] == saved + 3
+
+
+def test_two_process_ddp_gives_identical_weights(cache, tmp_path):
+    run = tmp_path / "ddp"
+    out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 3, "--devices", 2),
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    digests = [(run / "rank_digests" / f"rank{r}.txt").read_text().split() for r in (0, 1)]
+    assert digests[0] == digests[1] and digests[0][0] == "3"
