@@ -19,6 +19,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
     p.set_defaults(func=run_evaluate_speech)
 
+    p = esub.add_parser("gesture", help="SRGR, BA, FGD, Div, GA, jerk of motion sources (paper Table 1)")
+    p.add_argument("--data", required=True, type=Path, help="windows cache (its split's ground truth and audio)")
+    p.add_argument("--extractor", required=True, type=Path, help="run folder of `emogesture train extractor`")
+    p.add_argument("--source", action="append", default=[], metavar="NAME=FOLDER",
+                   help="a folder of <take>.npz motion files (BEAT2 format) to score; repeatable")
+    p.add_argument("--split", default="test", help="split to evaluate (default test)")
+    p.add_argument("--out", required=True, type=Path, help="output folder for JSON, markdown and PNGs")
+    p.add_argument("--no-baselines", action="store_true", help="skip mean pose / mismatched / shifted baselines")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports")
+    p.set_defaults(func=run_evaluate_gesture)
+
     info = sub.add_parser("model-info", help="parameter counts and FLOPs of a model preset")
     isub = info.add_subparsers(dest="model", required=True, metavar="MODEL")
     p = isub.add_parser("speech", help="the speech disentanglement model")
@@ -33,6 +45,22 @@ def run_evaluate_speech(args: argparse.Namespace) -> int:
     result = evaluate_speech(args.run, args.data, args.split, args.out, args.quadruples, args.seed,
                              overwrite=args.overwrite)
     print(speech_markdown(result))
+    return 0
+
+
+def run_evaluate_gesture(args: argparse.Namespace) -> int:
+    from emogesture.errors import EmogestureError
+    from emogesture.eval.gesture import evaluate_gesture, gesture_markdown
+
+    sources = {}
+    for item in args.source:
+        if "=" not in item:
+            raise EmogestureError(f"--source {item!r}: expected NAME=FOLDER")
+        name, folder = item.split("=", 1)
+        sources[name] = Path(folder)
+    result = evaluate_gesture(args.data, args.extractor, sources, args.out, args.split,
+                              baselines=not args.no_baselines, seed=args.seed, overwrite=args.overwrite)
+    print(gesture_markdown(result))
     return 0
 
 

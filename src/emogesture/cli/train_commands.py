@@ -33,23 +33,40 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="loss terms: full, or one of the paper's two ablations")
     _engine_args(p)
     p.set_defaults(func=run_train_speech)
+    p = tsub.add_parser("extractor", help="the motion feature extractor M used by the gesture metrics")
+    p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
+    _engine_args(p)
+    p.set_defaults(func=run_train_extractor)
 
 
 def run_train_speech(args: argparse.Namespace) -> int:
-    from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
     from emogesture.train.speech import SpeechTrainConfig, build
 
     base = to_dict(SpeechTrainConfig.preset(args.preset, args.losses))
     config = load_config(SpeechTrainConfig, args.config, args.overrides, base=base)
+    return _run(args, "train speech", config, build, "speech model")
+
+
+def run_train_extractor(args: argparse.Namespace) -> int:
+    from emogesture.train.extractor import ExtractorTrainConfig, build
+
+    base = to_dict(ExtractorTrainConfig.preset(args.preset))
+    config = load_config(ExtractorTrainConfig, args.config, args.overrides, base=base)
+    return _run(args, "train extractor", config, build, "motion feature extractor")
+
+
+def _run(args: argparse.Namespace, command: str, config, build, what: str) -> int:
+    from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
+
     settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=args.accelerator,
                            precision=args.precision, checkpoint_every=args.checkpoint_every,
                            progress=not args.quiet, seed=args.seed)
-    blob = {"command": "train speech", "config": to_dict(config), "data": str(args.data.resolve()),
+    blob = {"command": command, "config": to_dict(config), "data": str(args.data.resolve()),
             "seed": args.seed, "precision": args.precision}
     resume = check_run_dir(args.out, blob, args.overwrite)
     data, module, export = build(config, args.data, args.seed)
     trainer = make_trainer(args.out, settings, lambda m: export(m, args.out))
     fit(trainer, module, data, args.out, resume)
     if trainer.is_global_zero:
-        print(f"speech model: {args.out / 'model.json'} (step {trainer.global_step})")
+        print(f"{what}: {args.out / 'model.json'} (step {trainer.global_step})")
     return 0

@@ -1,0 +1,182 @@
+"""Procedural SMPL-X upper-body gestures timed by speech (SPEC §7).
+
+The motion is built from named control channels (radians, per frame) and mapped onto SMPL-X
+local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
+
+* posture = rest pose (arms down: shoulders ±1.25 rad about Z, elbows bent forward) + emotion
+  posture + speaker rest offsets + per-take jitter, drifting slowly;
+* a "gesture space" lift of the hands while speaking (smoothed voice activity);
+* strokes at detected audio onsets: an asymmetric Gaussian rise-apex-return of shoulder, elbow,
+  wrist, finger and head-nod channels, apex on the onset, so the arms' speed minima fall on
+  onsets; amplitude, width and rate from emotion × speaker × jitter, hands from the speaker's
+  handedness;
+* low-pass noise, breathing sway, a tremor for fear, the jaw opening with the speech energy.
+
+Mirror rule: the right side uses the left side's channels with the Y and Z rotation components
+negated (a reflection through the body's mid-plane). Lower-body joints stay at zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+from scipy.spatial.transform import Rotation
+
+from emogesture.audio import detect_onsets, frame_energy, onset_strength
+from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter
+from emogesture.types import FPS, NUM_JOINTS
+
+ARM_DOWN = 1.25  # rad about Z that brings the T-pose arms down beside the body
+REST = dict(flex=0.12, abduct=0.0, elbow=0.5)
+STROKE_WIDTH = 0.2  # s, rise half-width of a neutral stroke (return is 1.4× longer)
+STROKE_GAP = 0.7  # s, minimum spacing of neutral strokes
+STROKE_AMPLITUDE = 0.45  # rad scale of a neutral stroke
+SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
+COLLAR, SHOULDER, ELBOW, WRIST = (13, 14), (16, 17), (18, 19), (20, 21)
+FINGERS = (tuple(range(25, 37)), tuple(range(40, 52)))  # without thumbs
+THUMBS = (tuple(range(37, 40)), tuple(range(52, 55)))
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """One gesture stroke: apex time, extent (s), strength score 0-1 and hand(s) 'left'/'right'/'both'."""
+
+    apex: float
+    start: float
+    end: float
+    score: float
+    hand: str
+
+
+def _smooth_noise(rng: np.random.Generator, n: int, sigma_frames: float, size: int = 1) -> np.ndarray:
+    """Unit-variance low-pass noise ``[n, size]``."""
+    x = gaussian_filter1d(rng.standard_normal((n + 200, size)), sigma_frames, axis=0, mode="wrap")[100:-100]
+    return x / (x.std(axis=0, keepdims=True) + 1e-9)
+
+
+def pick_strokes(onsets: np.ndarray, strength: np.ndarray, active: np.ndarray, min_gap: float,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Greedy choice of stroke times among voiced onsets, strongest first, at least ``min_gap`` apart."""
+    keep = active[np.clip(np.round(onsets * FPS).astype(int), 0, len(active) - 1)]
+    cand, score = onsets[keep], strength[keep] * rng.uniform(0.6, 1.0, keep.sum())
+    chosen: list[float] = []
+    for i in np.argsort(-score, kind="stable"):
+        if all(abs(cand[i] - c) >= min_gap for c in chosen):
+            chosen.append(float(cand[i]))
+    return np.sort(np.asarray(chosen))
+
+
+def _hand_weights(speaker: Speaker, asymmetry: float) -> tuple[float, float]:
+    """(left, right) share of the gesture-space lift."""
+    weak = 0.45 * (1.0 - asymmetry)
+    if speaker.handedness == "both":
+        return 1.0, 1.0 - 0.6 * asymmetry
+    return (weak, 1.0) if speaker.handedness == "right" else (1.0, weak)
+
+
+def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: TakeJitter,
+                rng: np.random.Generator, sample_rate: int = 16000) -> tuple[np.ndarray, list[Stroke]]:
+    """Gestures for one take: ``(poses [T, 55, 3] float32 axis-angle, strokes)``, ``T = round(s × 30)``."""
+    energy = frame_energy(wave, sample_rate, FPS).astype(np.float64)
+    n = len(energy)
+    t = np.arange(n) / FPS
+    em, sm = emotion.motion, speaker.motion
+    amp = em.amplitude * sm.amplitude * jitter.amplitude
+    speed = em.speed * sm.speed * jitter.speed / speaker.smoothness
+    level = energy / (np.percentile(energy, 95) + 1e-9)
+    active = gaussian_filter1d((level > 0.15).astype(float), 3) > 0.5
+    lift = gaussian_filter1d(active.astype(float), 0.45 * FPS)  # hands up while talking, down in pauses
+
+    # Channels: posture per side (L, R) and body.
+    post = {k: em.posture.get(k, 0.0) + sm.posture.get(k, 0.0) + jitter.posture[k] for k in POSTURE_KEYS}
+    drift = _smooth_noise(rng, n, 1.5 * FPS, len(POSTURE_KEYS)) * 0.035
+    body = {k: post[k] + drift[:, i] for i, k in enumerate(POSTURE_KEYS)}
+    breath_f = rng.uniform(0.2, 0.3)
+    breath = np.sin(2 * np.pi * breath_f * t + rng.uniform(0, 2 * np.pi))
+    body["lean"] = body["lean"] + 0.012 * breath
+    body["shrug"] = body["shrug"] + 0.012 * breath
+    body["head_turn"] = body["head_turn"] + 0.06 * _smooth_noise(rng, n, 1.0 * FPS)[:, 0]
+    weights = _hand_weights(speaker, em.asymmetry)
+    arm_keys = ("flex", "abduct", "elbow", "wflex", "wdev", "twist", "curl")
+    arms = [{k: np.zeros(n) for k in arm_keys} for _ in range(2)]
+    for side in range(2):
+        a = arms[side]
+        noise = _smooth_noise(rng, n, 0.25 * FPS, len(arm_keys)) * 0.025 * np.sqrt(amp)
+        for i, k in enumerate(arm_keys):
+            a[k] += noise[:, i]
+        a["flex"] += REST["flex"] + body["flex"] + 0.15 * weights[side] * lift * amp ** 0.5
+        a["abduct"] += REST["abduct"] + body["abduct"] + 0.05 * weights[side] * lift * amp
+        a["elbow"] += REST["elbow"] + body["elbow"] + 0.55 * weights[side] * lift * amp ** 0.5
+        a["curl"] += speaker.finger_curl
+        if em.tremor:
+            shake = _smooth_noise(rng, n, 1.0, 3) - _smooth_noise(rng, n, 4.0, 3) * 0.5
+            a["wflex"] += em.tremor * 2 * shake[:, 0]
+            a["elbow"] += em.tremor * shake[:, 1]
+            a["flex"] += em.tremor * 0.5 * shake[:, 2]
+
+    # Strokes at onsets.
+    envelope = onset_strength(wave, sample_rate)
+    onsets = detect_onsets(wave, sample_rate, envelope=envelope)
+    strength = envelope[np.clip(np.round(onsets * sample_rate / 512).astype(int), 0, len(envelope) - 1)]
+    strength = strength / (strength.max() + 1e-9) if strength.size else strength
+    gap = STROKE_GAP / (em.rate * sm.rate * jitter.rate)
+    apexes = pick_strokes(onsets, strength, active, gap, rng)
+    strokes: list[Stroke] = []
+    rise = STROKE_WIDTH / speed
+    fall = 1.4 * rise
+    p_both = (0.6 if speaker.handedness == "both" else 0.2) * (1 - em.asymmetry)
+    p_weak = 0.12 * (1 - em.asymmetry)
+    dominant = 0 if speaker.handedness == "left" else 1
+    for apex in apexes:
+        apex = float(apex + rng.normal(0.0, 0.03))
+        s = float(np.interp(apex, onsets, strength)) if onsets.size else 1.0
+        a_k = STROKE_AMPLITUDE * amp * (0.55 + 0.45 * s) * float(np.exp(rng.normal(0.0, 0.25)))
+        w = np.where(t < apex, rise, fall)
+        bump = np.exp(-0.5 * ((t - apex) / w) ** 2)
+        u = rng.uniform()
+        sides = (0, 1) if u < p_both else ((1 - dominant,) if u < p_both + p_weak else (dominant,))
+        direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
+                         wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
+                         curl=-rng.uniform(0.0, 0.5))
+        for side in sides:
+            for k, v in direction.items():
+                arms[side][k] += a_k * v * bump
+        body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
+        body["lean"] += 0.04 * a_k * bump
+        score = float(np.clip(1.0 - np.exp(-a_k / 0.35), 0.0, 1.0))
+        hand = "both" if len(sides) == 2 else ("left", "right")[sides[0]]
+        strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + 2 * fall),
+                              round(score, 3), hand))
+    return _to_poses(body, arms, energy, rng), strokes
+
+
+def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Map the control channels onto SMPL-X local axis-angle rotations ``[T, 55, 3]``."""
+    n = len(energy)
+    poses = np.zeros((n, NUM_JOINTS, 3))
+    poses[:, 0, 1] = 0.02 * _smooth_noise(rng, n, 2.0 * FPS)[:, 0]  # slight weight shift
+    for j in SPINE:
+        poses[:, j] = np.stack([body["lean"], body["twist"], body["side"]], axis=1) / 3.0
+    poses[:, NECK] = np.stack([0.4 * body["head_pitch"], 0.5 * body["head_turn"], 0.3 * body["head_tilt"]], 1)
+    poses[:, HEAD] = np.stack([0.6 * body["head_pitch"], 0.5 * body["head_turn"], 0.7 * body["head_tilt"]], 1)
+    jaw = np.clip(gaussian_filter1d(energy / (np.percentile(energy, 95) + 1e-9), 1.0), 0.0, 1.3)
+    poses[:, JAW, 0] = 0.12 * jaw
+    mirror = (np.array([1.0, 1.0, 1.0]), np.array([1.0, -1.0, -1.0]))
+    for side in range(2):
+        a, m = arms[side], mirror[side]
+        abduct = np.maximum(a["abduct"], -0.15)
+        flex = np.clip(a["flex"], -0.3, 1.6)
+        down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
+        forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))
+        poses[:, SHOULDER[side]] = (forward * down).as_rotvec() * m
+        poses[:, COLLAR[side]] = np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) * m
+        poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
+        poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
+        curl = np.clip(a["curl"], -0.2, 1.2)
+        for k, j in enumerate(FINGERS[side]):
+            poses[:, j, 2] = -curl * (1.0 + 0.25 * (k % 3)) * 0.6 * m[2]
+        for j in THUMBS[side]:
+            poses[:, j, 1] = -0.2 * curl * m[1]
+    return poses.astype(np.float32)

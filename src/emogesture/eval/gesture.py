@@ -1,0 +1,176 @@
+"""``emogesture evaluate gesture``: paper Table 1 (SRGR, BA, FGD, Div, GA) plus wrist jerk.
+
+Every source is a set of motion windows aligned with one split of a windows cache. The extractor M
+embeds them (FGD, Div) and classifies their emotion (GA); forward kinematics on the licence-free
+skeleton gives joint positions for BA, SRGR and jerk; audio onsets come from the cache's source audio.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from emogesture.audio import detect_onsets, load_audio
+from emogesture.checkpoints import LoadedModel, load_model
+from emogesture.config import from_dict
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import SplitWindows, WindowsCache, open_cache
+from emogesture.errors import EmogestureError, OutputExistsError
+from emogesture.eval.classification import classification_report
+from emogesture.eval.metrics import METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk
+from emogesture.eval.plots import save_confusion_matrix
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
+
+COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk")
+
+
+@dataclass
+class Embedded:
+    features: np.ndarray  # [W, width] extractor features
+    logits: np.ndarray  # [W, 8]
+    joints: np.ndarray  # [W, T, 55, 3] metres
+
+
+class GestureEvaluator:
+    """Holds what every source is compared with: the split's ground truth, audio onsets, extractor."""
+
+    def __init__(self, cache: WindowsCache, split: str, extractor: LoadedModel, fps: int = 30) -> None:
+        self.cache, self.split, self.extractor, self.fps = cache, split, extractor, fps
+        self.windows: SplitWindows = cache.split(split)
+        self.spec = from_dict(MotionFeatureSpec, cache.manifest["config"]["features"])
+        stored = extractor.extra.get("features")
+        if stored is not None and from_dict(MotionFeatureSpec, stored) != self.spec:
+            raise EmogestureError(f"{extractor.path}: the extractor was trained on other motion features than {cache.root}")
+        self.mean = torch.tensor(extractor.extra["motion_mean"], dtype=torch.float32)
+        self.std = torch.tensor(extractor.extra["motion_std"], dtype=torch.float32)
+        self.body = SkeletonBody()
+        self.onsets = self._window_onsets()
+        self.gt = self.embed(np.asarray(self.windows.motion, np.float32))
+
+    def _window_onsets(self) -> list[np.ndarray] | None:
+        """Audio onset times (s, relative to each window's start) for every window, or None without audio."""
+        root = Path(self.cache.manifest["root"])
+        per_take: dict[str, np.ndarray] = {}
+        out = []
+        window_s = self.windows.motion.shape[1] / self.fps
+        for take, start in zip(self.windows.takes, self.windows.start_s):
+            if take not in per_take:
+                wav = root / "wave16k" / f"{take}.wav"
+                if not wav.is_file():
+                    return None
+                wave, sr = load_audio(wav)
+                per_take[take] = detect_onsets(wave, sr)
+            on = per_take[take]
+            out.append(on[(on >= start) & (on < start + window_s)] - start)
+        return out
+
+    @torch.no_grad()
+    def embed(self, motion: np.ndarray, batch_size: int = 64) -> Embedded:
+        """Raw features ``[W, T, D]`` -> extractor features, logits and joint positions."""
+        feats, logits, joints = [], [], []
+        for i in range(0, len(motion), batch_size):
+            x = torch.from_numpy(np.array(motion[i : i + batch_size], np.float32))
+            f, lg = self.extractor.model((x - self.mean) / self.std)
+            feats.append(f.numpy())
+            logits.append(lg.numpy())
+            poses, trans = features_to_poses(x, self.spec)
+            joints.append(self.body(poses, trans).numpy())
+        return Embedded(np.concatenate(feats), np.concatenate(logits), np.concatenate(joints))
+
+    def score(self, motion: np.ndarray, labels: np.ndarray | None = None, seed: int = 0) -> tuple[dict, np.ndarray]:
+        """Table-1 metrics of one source; returns ``(row, emotion confusion matrix)``."""
+        if motion.shape != self.windows.motion.shape:
+            raise EmogestureError(f"a source has shape {motion.shape}, expected {self.windows.motion.shape}")
+        e = self.embed(motion)
+        labels = self.windows.emotion if labels is None else labels
+        rep = classification_report(labels, e.logits.argmax(1), len(EMOTIONS))
+        ba = np.nan
+        if self.onsets is not None:
+            scores = np.array([beat_align(motion_beats(j, fps=self.fps), on) for j, on in zip(e.joints, self.onsets)])
+            ba = float(np.mean(scores[np.isfinite(scores)])) if np.isfinite(scores).any() else np.nan
+        row = {
+            "SRGR": float(np.mean([srgr(p, g, s) for p, g, s in zip(e.joints, self.gt.joints, self.windows.sem)])),
+            "BA": ba,
+            "FGD": frechet_distance(e.features, self.gt.features),
+            "Div": diversity(e.features, seed=seed),
+            "GA": rep["accuracy"],
+            "Jerk": float(np.mean([wrist_jerk(j, fps=self.fps) for j in e.joints])),
+        }
+        return row, rep["confusion"]
+
+    def split_half_fgd(self, seed: int = 0) -> float:
+        """FGD between the ground truth of two disjoint halves of the takes: the noise floor of FGD."""
+        takes = sorted(set(self.windows.takes))
+        rng = np.random.default_rng(seed)
+        half = set(rng.permutation(takes)[: len(takes) // 2].tolist())
+        mask = np.array([t in half for t in self.windows.takes])
+        return frechet_distance(self.gt.features[mask], self.gt.features[~mask])
+
+
+def gesture_markdown(result: dict) -> str:
+    lines = [f"# Gesture evaluation: {result['split']} split, {result['windows']} windows", "",
+             "| source | " + " | ".join(COLUMNS) + " |", "|---|" + "---|" * len(COLUMNS)]
+    for name, row in result["rows"].items():
+        lines.append(f"| {name} | " + " | ".join(_fmt(row[c]) for c in COLUMNS) + " |")
+    lines += ["", f"FGD between two disjoint halves of the ground-truth takes: {result['gt_split_half_fgd']:.3f} "
+              "(the noise floor of FGD on this split).",
+              "SRGR, BA, GA, Div: higher is better (Div: closer to GT); FGD, Jerk: lower is better (Jerk: m/s³, "
+              "closer to GT).", "", f"Extractor: {result['extractor']}", "",
+              "Constants: " + json.dumps(result["constants"]), ""]
+    return "\n".join(lines)
+
+
+def _fmt(v: float) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f"{v:.3f}"
+
+
+def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_dir: Path, split: str = "test",
+                     baselines: bool = True, seed: int = 0, overwrite: bool = False) -> dict:
+    """Score ``sources`` (name -> raw features ``[W, T, D]``, or ``(features, target labels)``, or a
+    folder of npz files) and the built-in baselines; writes JSON, markdown and confusion PNGs."""
+    from emogesture.eval import sources as src
+
+    t0 = time.monotonic()
+    out_dir = Path(out_dir)
+    json_path, md_path = out_dir / f"gesture_{split}.json", out_dir / f"gesture_{split}.md"
+    for p in (json_path, md_path):
+        if p.exists() and not overwrite:
+            raise OutputExistsError(p)
+    cache = open_cache(cache_dir)
+    ev = GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
+    w = ev.windows
+    todo: dict = {"GT": src.ground_truth(w)}
+    if baselines:
+        todo["mean pose"] = src.mean_pose(w, cache)
+        todo["GT, mismatched audio"] = src.mismatched(w, seed)
+        todo["GT, shifted 1 s"] = src.time_shifted(w, cache, 1.0)
+    for name, value in sources.items():
+        todo[name] = src.npz_folder(value, w, ev.spec) if isinstance(value, (str, Path)) else value
+    rows, out_dir_made = {}, False
+    for name, value in todo.items():
+        motion, labels = value if isinstance(value, tuple) else (value, None)
+        rows[name], cm = ev.score(motion, labels, seed)
+        if not out_dir_made:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            out_dir_made = True
+        slug = "".join(c if c.isalnum() else "_" for c in name.lower()).strip("_")
+        save_confusion_matrix(cm, list(EMOTIONS), out_dir / f"gesture_{split}_{slug}_emotion_confusion.png",
+                              title=f"{name}: GA {rows[name]['GA']:.3f}", overwrite=True)
+    result = {
+        "split": split, "windows": len(w), "cache": str(cache_dir), "extractor": str(extractor_run),
+        "rows": rows, "gt_split_half_fgd": ev.split_half_fgd(seed),
+        "audio_onsets": ev.onsets is not None,
+        "constants": {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in METRIC_CONSTANTS.items()},
+                      "seed": seed, "body": "licence-free mannequin-x skeleton"},
+        "seconds": round(time.monotonic() - t0, 1),
+    }
+    for path, text in ((json_path, json.dumps(result, indent=1)), (md_path, gesture_markdown(result))):
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_text(text)
+        tmp.replace(path)
+    return result
