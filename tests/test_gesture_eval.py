@@ -1,0 +1,71 @@
+"""Gesture evaluation end to end on a small fixture: extractor training, baselines, foreign npz files."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from emogesture.data.beat import write_split_csv
+from emogesture.data.prepare import prepare
+
+sys.path.insert(0, str(Path(__file__).parent))
+from test_prepare import make_root  # noqa: E402
+
+
+def cli(*args):
+    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    d = tmp_path_factory.mktemp("geval")
+    names = make_root(d / "root", speakers=(1, 2), takes=(1, 2, 65, 66))
+    write_split_csv(d / "root" / "train_test_split.csv",
+                    {n: "test" if n.split("_")[3] in ("2", "66") else "train" for n in names})
+    prepare(d / "root", d / "cache", progress=False)
+    out = subprocess.run(cli("train", "extractor", "--data", d / "cache", "--out", d / "ext", "--steps", 10, "--quiet"),
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return d
+
+
+def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
+    d = trained
+    foreign = tmp_path / "other_tool"
+    foreign.mkdir()
+    for src in sorted((d / "root" / "smplxflame_30").glob("*.npz")):
+        with np.load(src) as z:
+            poses = z["poses"].astype(np.float64)
+            trans = z["trans"].astype(np.float64)
+        # another tool's file: float64, (T, 55, 3) poses, extra keys, np.savez
+        np.savez(foreign / src.name, poses=poses.reshape(-1, 55, 3), trans=trans, betas=np.zeros(10),
+                 mocap_frame_rate=np.array(30.0), exporter=np.array("other-tool 1.0"), fps=np.array(30))
+    out = subprocess.run(cli("evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
+                             "--source", f"other={foreign}", "--out", tmp_path / "report"),
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads((tmp_path / "report" / "gesture_test.json").read_text())
+    rows = r["rows"]
+    assert set(rows) == {"GT", "mean pose", "GT, mismatched audio", "GT, shifted 1 s", "other"}
+    assert rows["other"]["FGD"] < 1e-3 and rows["other"]["SRGR"] == pytest.approx(rows["GT"]["SRGR"], abs=1e-6)
+    assert rows["mean pose"]["FGD"] > 10 * max(rows["other"]["FGD"], 1e-3)
+    assert rows["mean pose"]["Div"] < 1e-6 < rows["GT"]["Div"]
+    assert rows["mean pose"]["Jerk"] < 1e-6
+    md = (tmp_path / "report" / "gesture_test.md").read_text()
+    assert "| other |" in md and "beat_sigma_s" in md
+    assert (tmp_path / "report" / "gesture_test_other_emotion_confusion.png").read_bytes()[:4] == b"\x89PNG"
+    again = subprocess.run(cli("evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
+                               "--out", tmp_path / "report"), capture_output=True, text=True)
+    assert again.returncode == 2 and "--overwrite" in again.stderr
+
+
+def test_missing_take_in_a_source_names_the_file(trained, tmp_path):
+    (tmp_path / "empty").mkdir()
+    out = subprocess.run(cli("evaluate", "gesture", "--data", trained / "cache", "--extractor", trained / "ext",
+                             "--source", f"x={tmp_path / 'empty'}", "--out", tmp_path / "r"),
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and "missing" in out.stderr and ".npz" in out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
