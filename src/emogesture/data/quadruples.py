@@ -29,10 +29,15 @@ class Quadruple:
 class QuadrupleIndex:
     """Which quadruples a split of windows offers, and seeded draws from them."""
 
-    def __init__(self, windows: SplitWindows) -> None:
+    def __init__(self, windows: SplitWindows, first_texts: set[int] | None = None) -> None:
+        """``windows``: anything with ``text``, ``speaker_id``, ``emotion``, ``start_s`` arrays ``[W]``.
+
+        ``first_texts``: only pairs whose first text ``c1`` is in this set (e.g. held-out texts,
+        paired with training texts of the same emotion as ``c2``).
+        """
         by_text_speaker: dict[tuple[int, int], list[tuple[float, int]]] = defaultdict(list)
         text_emotion: dict[int, int] = {}
-        for i in range(len(windows)):
+        for i in range(len(windows.text)):
             text, spk = int(windows.text[i]), int(windows.speaker_id[i])
             by_text_speaker[(text, spk)].append((float(windows.start_s[i]), i))
             text_emotion.setdefault(text, int(windows.emotion[i]))
@@ -49,6 +54,8 @@ class QuadrupleIndex:
             for a in texts:
                 for b in texts:
                     common = tuple(sorted(speakers_of[a] & speakers_of[b]))
+                    if first_texts is not None and a not in first_texts:
+                        continue
                     if a != b and len(common) >= 2:
                         self.pairs.append((emo, a, b, common))
         if not self.pairs:
@@ -69,3 +76,17 @@ class QuadrupleIndex:
             self.windows[(c2, s2)][k2],
         )
         return Quadruple(tuple(int(i) for i in idx), int(emo), (int(s1), int(s1), int(s2), int(s2)))
+
+
+@dataclass
+class WindowLabels:
+    """The label columns of one or more splits, concatenated: what :class:`QuadrupleIndex` reads."""
+
+    text: np.ndarray
+    speaker_id: np.ndarray
+    emotion: np.ndarray
+    start_s: np.ndarray
+
+    @classmethod
+    def concat(cls, *splits: SplitWindows) -> "WindowLabels":
+        return cls(*(np.concatenate([getattr(s, k) for s in splits]) for k in ("text", "speaker_id", "emotion", "start_s")))

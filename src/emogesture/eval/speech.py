@@ -15,7 +15,7 @@ import torch
 
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
-from emogesture.data.quadruples import QuadrupleIndex
+from emogesture.data.quadruples import QuadrupleIndex, WindowLabels
 from emogesture.errors import EmogestureError, OutputExistsError
 from emogesture.eval.classification import classification_report
 from emogesture.eval.plots import save_confusion_matrix
@@ -27,10 +27,20 @@ RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_e
 
 
 @torch.no_grad()
-def reconstruction_errors(encoder: SpeechLatentEncoder, windows, num_quadruples: int, seed: int,
+def reconstruction_errors(encoder: SpeechLatentEncoder, windows, train, num_quadruples: int, seed: int,
                           batch_size: int = 8) -> dict[str, float]:
-    """Mean L1 filterbank errors Self, XCon, XEmo, XSty over seeded test quadruples."""
-    index = QuadrupleIndex(windows)
+    """Mean L1 filterbank errors Self, XCon, XEmo, XSty over seeded held-out quadruples.
+
+    The first text ``c1`` of every quadruple is one of the evaluated split's; ``c2`` is another text of
+    the same emotion from that split or, when it has none, from the training split.
+    """
+    labels = WindowLabels.concat(windows, train)
+    n = len(windows)
+    index = QuadrupleIndex(labels, first_texts=set(windows.text.tolist()))
+
+    def fbank(j: int) -> np.ndarray:
+        return np.asarray(windows.fbank[j] if j < n else train.fbank[j - n], np.float32)
+
     rng = np.random.default_rng(seed)
     speakers = {s: i for i, s in enumerate(encoder.speakers)}
     sums = {k: 0.0 for k in RECON_COLUMNS}
@@ -38,7 +48,7 @@ def reconstruction_errors(encoder: SpeechLatentEncoder, windows, num_quadruples:
     cfg = SpeechLossConfig(content=0.0, emotion=0.0, style=0.0)
     while done < num_quadruples:
         qs = [index.draw(rng) for _ in range(min(batch_size, num_quadruples - done))]
-        fb = torch.from_numpy(np.stack([[np.asarray(windows.fbank[j], np.float32) for j in q.indices] for q in qs]))
+        fb = torch.from_numpy(np.stack([[fbank(j) for j in q.indices] for q in qs]))
         emo = torch.tensor([q.emotion for q in qs])
         spk = torch.tensor([[speakers.get(s, 0) for s in q.speakers] for q in qs])
         out = speech_losses(encoder.model, fb.to(encoder.device), emo, spk, cfg)
@@ -83,7 +93,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
         probes[f"emotion_from_{latent}"] = linear_probe_accuracy(x_tr, train.emotion[sub], x_te, test.emotion)
         probes[f"speaker_from_{latent}"] = linear_probe_accuracy(x_tr, train.speaker_id[sub], x_te, test.speaker_id)
 
-    recon = reconstruction_errors(encoder, test, num_quadruples, seed)
+    recon = reconstruction_errors(encoder, test, train, num_quadruples, seed)
     result = {
         "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test),
         "step": encoder.loaded.extra.get("step"),
