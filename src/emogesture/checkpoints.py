@@ -54,6 +54,9 @@ def _builtin_kinds() -> None:
 
     register_kind("speech", SpeechModelConfig, SpeechDisentangler)
     register_kind("extractor", ExtractorConfig, MotionFeatureExtractor)
+    from emogesture.models.gesture import GestureModel, GestureModelConfig
+
+    register_kind("gesture", GestureModelConfig, GestureModel)
 
 
 @dataclass

@@ -16,6 +16,7 @@ from emogesture.audio.fbank import (
     num_fbank_frames,
 )
 from emogesture.audio.io import TARGET_SAMPLE_RATE, check_speech, load_audio, resample
+from emogesture.audio.mfcc import mfcc_from_log_mel
 from emogesture.audio.mel import (
     hz_to_mel_htk,
     hz_to_mel_slaney,
@@ -42,6 +43,7 @@ from emogesture.audio.windows import (
 )
 
 __all__ = [
+    "mfcc_from_log_mel",
     "FBANK_FRAMES_PER_SECOND",
     "FBANK_MEAN",
     "FBANK_STD",

@@ -1,0 +1,109 @@
+"""The gesture generation model (SPEC §4): motion prior + latent denoiser, and the ablation variants.
+
+Variants (paper Table 3 / supp. C):
+- ``joint``: MLD-style VAE motion prior and latent denoiser trained together (the paper's model);
+- ``disjoint``: the same networks, VAE first, then the denoiser on the frozen VAE;
+- ``no_prior``: no learned motion prior — a single linear map between a flattened motion window
+  and the 256-d latent stands in for the VAE (no KL, no transformer); the denoiser is unchanged;
+- ``no_audio``: no speech disentanglement — an 8-layer linear autoencoder over the window's MFCCs
+  gives one latent ``m`` that replaces ``(c, e, s)`` as the denoiser's only condition.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+from torch import nn
+
+from emogesture.diffusion.schedulers import DiffusionConfig
+from emogesture.errors import ConfigError
+from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
+from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
+
+VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
+
+
+@dataclass
+class GestureModelConfig:
+    variant: str = "joint"
+    vae: MotionVAEConfig = field(default_factory=MotionVAEConfig)
+    denoiser: DenoiserConfig = field(default_factory=DenoiserConfig)
+    diffusion: DiffusionConfig = field(default_factory=DiffusionConfig)
+    mfcc_dim: int = 13 * 128  # no_audio: MFCC window (13 coefficients x 1024 frames averaged in 8s)
+    audio_ae_width: int = 256  # no_audio: hidden width of the linear autoencoder
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise ConfigError(f"unknown gesture model variant {self.variant!r}; known: {', '.join(VARIANTS)}")
+        want = 1 if self.variant == "no_audio" else 3
+        if self.denoiser.num_conditions != want:
+            raise ConfigError(f"variant {self.variant} needs denoiser.num_conditions = {want}")
+        if self.vae.latent_dim != self.denoiser.latent_dim:
+            raise ConfigError("vae.latent_dim and denoiser.latent_dim must agree")
+
+    @classmethod
+    def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
+        n = 1 if variant == "no_audio" else 3
+        return cls(variant=variant, vae=MotionVAEConfig.preset(name), denoiser=DenoiserConfig.preset(name, n))
+
+
+class LinearMotionMap(nn.Module):
+    """``no_prior``: motion window ``[B, T, D]`` <-> latent ``[B, 256]`` by one linear map each way."""
+
+    def __init__(self, config: MotionVAEConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.down = nn.Linear(config.frames * config.feature_dim, config.latent_dim)
+        self.up = nn.Linear(config.latent_dim, config.frames * config.feature_dim)
+
+    def encode(self, motion: torch.Tensor, generator=None, sample: bool = True):
+        z = self.down(motion.reshape(motion.shape[0], -1))
+        return z, z, torch.zeros_like(z)
+
+    def decode(self, z: torch.Tensor, frames: int | None = None) -> torch.Tensor:
+        return self.up(z).reshape(z.shape[0], self.config.frames, self.config.feature_dim)
+
+    def forward(self, motion: torch.Tensor, generator=None, sample: bool = True):
+        z, mu, logvar = self.encode(motion)
+        return self.decode(z), z, mu, logvar
+
+
+class MFCCAutoencoder(nn.Module):
+    """``no_audio``: 8 linear layers (4 down, 4 up) over a flattened MFCC window -> one latent ``m``."""
+
+    def __init__(self, in_dim: int, width: int, latent_dim: int) -> None:
+        super().__init__()
+        dims = [in_dim, width * 2, width, width, latent_dim]
+        enc, dec = [], []
+        for a, b in zip(dims[:-1], dims[1:]):
+            enc += [nn.Linear(a, b), nn.GELU()]
+        for a, b in zip(dims[::-1][:-1], dims[::-1][1:]):
+            dec += [nn.Linear(a, b), nn.GELU()]
+        self.encoder = nn.Sequential(*enc[:-1])
+        self.decoder = nn.Sequential(*dec[:-1])
+
+    def forward(self, mfcc: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``mfcc [B, in_dim]`` -> ``(m [B, latent], reconstruction [B, in_dim])``."""
+        m = self.encoder(mfcc)
+        return m, self.decoder(m)
+
+
+class GestureModel(nn.Module):
+    """Motion prior (``prior``) + latent denoiser (``denoiser``) [+ ``audio_ae`` for ``no_audio``]."""
+
+    def __init__(self, config: GestureModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.prior = LinearMotionMap(config.vae) if config.variant == "no_prior" else MotionVAE(config.vae)
+        self.denoiser = LatentDenoiser(config.denoiser)
+        self.audio_ae = (MFCCAutoencoder(config.mfcc_dim, config.audio_ae_width, config.denoiser.cond_dim)
+                         if config.variant == "no_audio" else None)
+
+    def count_parameters(self) -> dict[str, int]:
+        out = {"prior": sum(p.numel() for p in self.prior.parameters()),
+               "denoiser": sum(p.numel() for p in self.denoiser.parameters())}
+        if self.audio_ae is not None:
+            out["audio_ae"] = sum(p.numel() for p in self.audio_ae.parameters())
+        out["total"] = sum(out.values())
+        return out

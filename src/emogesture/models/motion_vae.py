@@ -1,0 +1,142 @@
+"""Motion prior: a transformer VAE in the style of MLD (SPEC §4, paper §3.3, supp. Fig. A.7).
+
+Encoder P_E: ``motion [B, T, 282]`` -> Linear(282 -> d) -> two learnable distribution tokens (μ, log σ²)
+prepended -> skip transformer (learnable positional embedding in every attention layer) -> the first two
+output tokens give μ and log σ² (each projected to ``latent_dim`` when ``d != latent_dim``) ->
+``z = μ + σ·ε``.
+
+Decoder P_D: T zero queries plus the positional embedding -> skip transformer with cross-attention to the
+single memory token ``Linear(z)`` (identity when ``d == latent_dim``) in every layer -> Linear(d -> 282).
+With one memory token the cross-attention softmax is identically 1, so each cross-attention adds
+``proj(v(z))`` to every frame and its query path (``norm_cross``, ``cross.q``) never receives a gradient
+(as in MLD with ``latent_size = 1``). The queries carry the positional embedding both as their input
+(values must differ per frame, or attention could not tell frames apart) and inside every attention.
+
+Windows may be shorter than ``frames`` (the maximum; the positional tables are sized to it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from emogesture.errors import ConfigError
+from emogesture.models.skip_transformer import SkipTransformer, SkipTransformerConfig
+
+
+@dataclass
+class MotionVAEConfig:
+    """Size of the motion VAE. Defaults are the ``paper`` preset (MLD's VAE: 9 layers, 4 heads, d 256)."""
+
+    feature_dim: int = 282
+    frames: int = 300
+    latent_dim: int = 256
+    width: int = 256
+    layers: int = 9
+    heads: int = 4
+    ff_dim: int = 1024
+    dropout: float = 0.1
+
+    def __post_init__(self) -> None:
+        if min(self.feature_dim, self.frames, self.latent_dim) < 1:
+            raise ConfigError("motion VAE: feature_dim, frames and latent_dim must be positive")
+        self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
+
+    def transformer(self, cross_attention: bool) -> SkipTransformerConfig:
+        return SkipTransformerConfig(self.width, self.layers, self.heads, self.ff_dim, self.dropout, cross_attention)
+
+    @classmethod
+    def preset(cls, name: str, feature_dim: int = 282, frames: int = 300) -> "MotionVAEConfig":
+        """``paper``: width 256, 9 layers, 4 heads, ff 1024, dropout 0.1 (≈17.9 M parameters).
+
+        ``tiny``: width 64, 3 layers (1 + 1 + 1), 4 heads, ff 256 (≈0.49 M parameters) for CPU work: a
+        training step on 16 windows of 300 frames takes ≈1.4 s on one CPU thread (width 128 with 5
+        layers, ≈2 M parameters, takes ≈3.2 s).
+        """
+        if name == "paper":
+            return cls(feature_dim=feature_dim, frames=frames)
+        if name == "tiny":
+            return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256)
+        raise ConfigError(f"unknown motion VAE preset {name!r}; known: paper, tiny")
+
+
+def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(N(μ, σ²) ‖ N(0, I)) summed over latent dimensions, averaged over the batch: ``[B, Z] -> []``.
+
+    ``½ Σ (μ² + σ² − log σ² − 1)``, the paper's L_KL (its weight, 1e-4, is a training setting).
+    """
+    return 0.5 * (mu.pow(2) + logvar.exp() - logvar - 1.0).sum(dim=-1).mean()
+
+
+class MotionVAE(nn.Module):
+    """Transformer VAE over motion-feature windows; see the module docstring."""
+
+    def __init__(self, config: MotionVAEConfig) -> None:
+        super().__init__()
+        self.config = config
+        c = config
+        d = c.width
+        # Encoder P_E.
+        self.encoder_input = nn.Linear(c.feature_dim, d)
+        self.dist_tokens = nn.Parameter(torch.zeros(1, 2, d))  # [μ token, log σ² token]
+        self.encoder_pos = nn.Parameter(torch.zeros(1, 2 + c.frames, d))
+        self.encoder = SkipTransformer(c.transformer(cross_attention=False))
+        self.to_mu = nn.Linear(d, c.latent_dim) if d != c.latent_dim else nn.Identity()
+        self.to_logvar = nn.Linear(d, c.latent_dim) if d != c.latent_dim else nn.Identity()
+        # Decoder P_D.
+        self.decoder_pos = nn.Parameter(torch.zeros(1, c.frames, d))
+        self.latent_to_memory = nn.Linear(c.latent_dim, d) if d != c.latent_dim else nn.Identity()
+        self.decoder = SkipTransformer(c.transformer(cross_attention=True))
+        self.decoder_output = nn.Linear(d, c.feature_dim)
+        for p in (self.dist_tokens, self.encoder_pos, self.decoder_pos):
+            nn.init.trunc_normal_(p, std=0.02)
+
+    def _check_motion(self, motion: torch.Tensor) -> None:
+        c = self.config
+        if motion.dim() != 3 or motion.shape[-1] != c.feature_dim or not 1 <= motion.shape[1] <= c.frames:
+            raise ValueError(f"motion VAE expects [B, T<={c.frames}, {c.feature_dim}], got {tuple(motion.shape)}")
+
+    def encode(
+        self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Args: normalised features ``motion [B, T, 282]`` (``T <= frames``); ``generator`` for ε
+        (required when ``sample`` and the result must be reproducible); ``sample=False`` returns ``z = μ``.
+
+        Returns: ``z [B, 256]``, ``mu [B, 256]``, ``logvar [B, 256]``.
+        """
+        self._check_motion(motion)
+        b, t, _ = motion.shape
+        x = torch.cat([self.dist_tokens.expand(b, -1, -1), self.encoder_input(motion)], dim=1)
+        y = self.encoder(x, self.encoder_pos[:, : t + 2])
+        mu, logvar = self.to_mu(y[:, 0]), self.to_logvar(y[:, 1])
+        if not sample:
+            return mu, mu, logvar
+        eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
+        return mu + torch.exp(0.5 * logvar) * eps, mu, logvar
+
+    def decode(self, z: torch.Tensor, frames: int | None = None) -> torch.Tensor:
+        """``z [B, 256] -> motion [B, T, 282]`` with ``T = frames`` (default: the configured maximum)."""
+        c = self.config
+        t = c.frames if frames is None else int(frames)
+        if not 1 <= t <= c.frames:
+            raise ValueError(f"motion VAE decodes 1..{c.frames} frames, asked for {t}")
+        if z.dim() != 2 or z.shape[-1] != c.latent_dim:
+            raise ValueError(f"motion VAE expects z [B, {c.latent_dim}], got {tuple(z.shape)}")
+        memory = self.latent_to_memory(z).unsqueeze(1)  # [B, 1, d]
+        pos = self.decoder_pos[:, :t]
+        queries = torch.zeros(z.shape[0], t, c.width, device=z.device, dtype=z.dtype) + pos
+        return self.decoder_output(self.decoder(queries, pos, memory))
+
+    def forward(
+        self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``motion [B, T, 282]`` -> ``reconstruction [B, T, 282]``, ``z``, ``mu``, ``logvar`` ``[B, 256]``."""
+        z, mu, logvar = self.encode(motion, generator=generator, sample=sample)
+        return self.decode(z, frames=motion.shape[1]), z, mu, logvar
+
+    @staticmethod
+    def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+        """See :func:`kl_loss`."""
+        return kl_loss(mu, logvar)

@@ -1,0 +1,216 @@
+"""Joint training of the motion prior and the latent denoiser (paper Fig. 2, SPEC §4).
+
+Each step: (1) prior forward on the motion m -> m̂: L_rec (smooth L1, features), L_Vrec (smooth L1,
+joint positions of the licence-free skeleton), L_KL; (2) z_m = P_E(m) without gradient, noised at a
+random t: L_LD = ||ε - Δ(z_t, t, c, e, s)||²; (3) without gradient, the full DDIM loop from noise
+with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
+The audio model is frozen: c, e, s are computed once per window by the speech run and cached.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import lightning as L
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch.utils.data import DataLoader, Dataset
+
+from emogesture.audio import mfcc_from_log_mel
+from emogesture.checkpoints import save_model
+from emogesture.config import from_dict, to_dict
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import open_cache
+from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps
+from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
+from emogesture.models.gesture import GestureModel, GestureModelConfig
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
+from emogesture.pipeline.speech import SpeechLatentEncoder
+
+LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
+
+
+@dataclass
+class GestureLossWeights:
+    rec: float = 1.0
+    vrec: float = 1.0
+    kl: float = 1e-4
+    ld: float = 1.0
+    align: float = 1.0
+    valign: float = 1.0
+    audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
+
+
+@dataclass
+class GestureTrainConfig:
+    model: GestureModelConfig = field(default_factory=lambda: GestureModelConfig.preset("tiny"))
+    losses: GestureLossWeights = field(default_factory=GestureLossWeights)
+    batch_size: int = 32
+    lr: float = 1e-4
+    weight_decay: float = 0.0
+    align_ddim_steps: int = 50  # DDIM steps of the no-gradient sampling in step (3) (paper: 50)
+    align_every: int = 1  # run step (3) every N steps (paper: every step)
+    disjoint_prior_steps: int = 500  # variant "disjoint": prior-only steps before the denoiser-only phase
+    num_workers: int = 0
+
+    @classmethod
+    def preset(cls, size: str = "tiny", variant: str = "joint") -> "GestureTrainConfig":
+        cfg = cls(model=GestureModelConfig.preset(size, variant))
+        if size == "paper":
+            cfg.batch_size = 64
+        else:
+            cfg.lr, cfg.align_ddim_steps, cfg.align_every = 3e-4, 10, 2
+        return cfg
+
+
+class GestureWindows(Dataset):
+    """Normalised motion windows with their condition latents (and emotion labels)."""
+
+    def __init__(self, motion, mean, std, conditions: list[np.ndarray], emotion: np.ndarray) -> None:
+        self.motion, self.mean, self.std = motion, mean, std
+        self.conditions, self.emotion = conditions, emotion
+
+    def __len__(self) -> int:
+        return len(self.motion)
+
+    def __getitem__(self, i: int) -> dict:
+        m = (np.asarray(self.motion[i], np.float32) - self.mean) / self.std
+        return {"motion": torch.from_numpy(m), "emotion": torch.tensor(int(self.emotion[i])),
+                "conditions": [torch.from_numpy(np.asarray(c[i], np.float32)) for c in self.conditions]}
+
+
+def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
+    """Cached normalised fbank windows ``[W, 1024, n_mels]`` -> flattened pooled MFCCs ``[W, 13 * 128]``."""
+    out = []
+    for i in range(0, len(fbank_windows), batch):
+        x = torch.from_numpy(np.asarray(fbank_windows[i : i + batch], np.float32)) * (2 * fbank_std) + fbank_mean
+        out.append(mfcc_from_log_mel(x, 13, time_pool=8).flatten(1).numpy())
+    return np.concatenate(out)
+
+
+def window_conditions(variant: str, cache, split: str, speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
+    """Condition arrays of every window of a split: ``[c, e, s]`` latents, or ``[mfcc]`` for no_audio."""
+    if variant == "no_audio":
+        w = cache.split(split)
+        return [mfcc_windows(w.fbank, cache.stats["fbank_mean"], cache.stats["fbank_std"])]
+    enc = speech.encode_split(cache, split)
+    return [enc.content, enc.emotion, enc.style]
+
+
+class GestureModule(L.LightningModule):
+    def __init__(self, config: dict, motion_mean: list, motion_std: list, features: dict, seed: int = 0) -> None:
+        super().__init__()
+        self.save_hyperparameters()
+        self.cfg = from_dict(GestureTrainConfig, config)
+        self.seed = seed
+        torch.manual_seed(seed)
+        self.model = GestureModel(self.cfg.model)
+        self.spec = from_dict(MotionFeatureSpec, features)
+        self.register_buffer("mean", torch.tensor(motion_mean, dtype=torch.float32))
+        self.register_buffer("std", torch.tensor(motion_std, dtype=torch.float32))
+        self.body = SkeletonBody()
+        for p in self.body.parameters():
+            p.requires_grad_(False)
+        self.ddpm = make_ddpm_scheduler(self.cfg.model.diffusion)
+        self.ddim = make_ddim_scheduler(self.cfg.model.diffusion)
+
+    def joints(self, normalised: torch.Tensor) -> torch.Tensor:
+        """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""
+        poses, trans = features_to_poses(normalised * self.std + self.mean, self.spec)
+        return self.body(poses, trans)
+
+    def _generator(self) -> torch.Generator:
+        seed = np.random.SeedSequence([self.seed, self.global_step, self.global_rank]).generate_state(1)[0]
+        return torch.Generator().manual_seed(int(seed))
+
+    def conditions(self, batch: dict) -> tuple[list[torch.Tensor], torch.Tensor | None]:
+        conds = list(batch["conditions"])
+        if self.model.audio_ae is None:
+            return conds, None
+        m, rec = self.model.audio_ae(conds[0])
+        return [m.detach()], F.mse_loss(rec, conds[0])
+
+    def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
+        cfg, w = self.cfg, self.cfg.losses
+        g = self._generator()
+        m = batch["motion"]
+        b = m.shape[0]
+        conds, audio_rec = self.conditions(batch)
+        variant = cfg.model.variant
+        phase_prior = variant != "disjoint" or self.global_step < cfg.disjoint_prior_steps
+        phase_denoiser = variant != "disjoint" or self.global_step >= cfg.disjoint_prior_steps
+        losses: dict[str, torch.Tensor] = {}
+        prior = self.model.prior
+        if phase_prior:
+            rec, z, mu, logvar = prior(m, generator=g)
+            losses["rec"] = F.smooth_l1_loss(rec, m)
+            j_gt = self.joints(m)
+            losses["vrec"] = F.smooth_l1_loss(self.joints(rec), j_gt)
+            if variant != "no_prior":
+                losses["kl"] = prior.kl_loss(mu, logvar)
+        else:
+            with torch.no_grad():
+                z, _, _ = prior.encode(m, generator=g)
+        if phase_denoiser:
+            z0 = z.detach()
+            noise = draw_noise(g, b, z0.shape[1]).to(z0)
+            t = sample_timesteps(g, b, cfg.model.diffusion.num_train_timesteps).to(z0.device)
+            eps = self.model.denoiser(add_noise(self.ddpm, z0, noise, t), t, conds)
+            losses["ld"] = F.mse_loss(eps, noise)
+            if variant != "disjoint" and cfg.align_every > 0 and self.global_step % cfg.align_every == 0:
+                z_tilde = ddim_sample(self.model.denoiser, self.ddim, conds, g,
+                                      num_inference_steps=cfg.align_ddim_steps)
+                m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1])
+                losses["align"] = F.smooth_l1_loss(m_tilde, m)
+                losses["valign"] = F.smooth_l1_loss(self.joints(m_tilde), self.joints(m))
+        if audio_rec is not None:
+            losses["audio_rec"] = audio_rec
+        total = sum(getattr(w, k) * v for k, v in losses.items())
+        self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, batch_size=b)
+        self.log("loss", total.detach(), prog_bar=True, batch_size=b)
+        return total
+
+    def configure_optimizers(self):
+        params = [p for p in self.model.parameters() if p.requires_grad]
+        return torch.optim.AdamW(params, lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
+
+
+class GestureDataModule(L.LightningDataModule):
+    def __init__(self, dataset: Dataset, batch_size: int, seed: int, num_workers: int = 0) -> None:
+        super().__init__()
+        self.dataset, self.batch_size, self.seed, self.num_workers = dataset, batch_size, seed, num_workers
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=True, drop_last=True,
+                          generator=torch.Generator().manual_seed(self.seed), num_workers=self.num_workers)
+
+
+def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Path | None):
+    cache = open_cache(cache_dir)
+    train = cache.split("train")
+    variant = config.model.variant
+    speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(speech_run)
+    conds = window_conditions(variant, cache, "train", speech)
+    mean = np.asarray(cache.stats["motion_mean"], np.float32)
+    std = np.asarray(cache.stats["motion_std"], np.float32)
+    config.model.vae.feature_dim = int(train.motion.shape[2])
+    config.model.vae.frames = int(train.motion.shape[1])
+    data = GestureDataModule(GestureWindows(train.motion, mean, std, conds, train.emotion),
+                             config.batch_size, seed, config.num_workers)
+    features = cache.manifest["config"]["features"]
+    module = GestureModule(to_dict(config), mean.tolist(), std.tolist(), features, seed)
+    extra = {"emotions": list(EMOTIONS), "motion_mean": mean.tolist(), "motion_std": std.tolist(),
+             "features": features, "variant": variant, "fps": 30}
+    if speech is not None:
+        enc_e = conds[1]
+        extra["speech_model"] = str(Path(speech.loaded.path).resolve())
+        extra["speech_weights_sha256"] = speech.loaded.meta["weights_sha256"]
+        extra["emotion_latent_means"] = {
+            EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist() for k in sorted(set(train.emotion.tolist()))}
+
+    def export(m: GestureModule, run_dir: Path) -> None:
+        save_model(run_dir, "gesture", m.model, m.cfg.model, {**extra, "step": m.global_step})
+
+    return data, module, export

@@ -1,0 +1,237 @@
+"""Latent denoiser, noise schedulers (against closed forms) and the DDIM sampling loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from emogesture.diffusion import (
+    DiffusionConfig, add_noise, ddim_sample, draw_noise, make_ddim_scheduler, make_ddpm_scheduler,
+    make_generators, sample_timesteps,
+)
+from emogesture.errors import ConfigError
+from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
+from emogesture.models.speech import AudioLatents
+
+
+def _gen(seed: int) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+@pytest.fixture(scope="module")
+def ddim():
+    return make_ddim_scheduler(DiffusionConfig())
+
+
+@pytest.fixture(scope="module")
+def ddpm():
+    return make_ddpm_scheduler(DiffusionConfig())
+
+
+@pytest.fixture(scope="module")
+def tiny() -> LatentDenoiser:
+    torch.manual_seed(0)
+    return LatentDenoiser(DenoiserConfig.preset("tiny")).eval()
+
+
+def _conds(b: int, seed: int) -> AudioLatents:
+    c, e, s = torch.randn(3, b, 256, generator=_gen(seed))
+    return AudioLatents(c, e, s)
+
+
+# --- schedulers --------------------------------------------------------------------------------------------
+
+
+def test_config_is_explicit_and_validated(ddim, ddpm):
+    assert ddim.config.clip_sample is False and ddim.config.set_alpha_to_one is False
+    assert ddim.config.steps_offset == 1 and ddim.config.beta_schedule == "scaled_linear"
+    assert ddpm.config.variance_type == "fixed_small" and ddpm.config.clip_sample is False
+    assert ddpm.config.prediction_type == "epsilon" and ddpm.config.num_train_timesteps == 1000
+    for bad in ({"beta_schedule": "cosine"}, {"num_inference_steps": 0}, {"beta_start": 0.02}):
+        with pytest.raises(ConfigError):
+            DiffusionConfig(**bad)
+
+
+def test_ddim_timesteps_leading_with_offset(ddim):
+    assert ddim.timesteps.tolist() == [20 * i + 1 for i in reversed(range(50))]  # 981, 961, ..., 1
+    s = make_ddim_scheduler(DiffusionConfig(num_inference_steps=25))
+    assert s.timesteps.tolist() == [40 * i + 1 for i in reversed(range(25))]
+
+
+def test_scaled_linear_betas_and_alphas_cumprod(ddim, ddpm):
+    betas = np.linspace(0.00085**0.5, 0.012**0.5, 1000) ** 2
+    for s in (ddim, ddpm):
+        np.testing.assert_allclose(s.betas.double().numpy(), betas, rtol=1e-5)
+        np.testing.assert_allclose(s.alphas_cumprod.double().numpy(), np.cumprod(1 - betas), rtol=1e-5)
+    # set_alpha_to_one=False: the step after the last timestep goes to ᾱ_0, not to 1.
+    assert float(ddim.final_alpha_cumprod) == pytest.approx(1 - betas[0], rel=1e-6)
+
+
+def _ddim_closed_form(ac, x_t, eps, t, t_prev):
+    a_t = ac[t]
+    a_prev = ac[t_prev] if t_prev >= 0 else ac[0]
+    x0 = (x_t - np.sqrt(1 - a_t) * eps) / np.sqrt(a_t)
+    return np.sqrt(a_prev) * x0 + np.sqrt(1 - a_prev) * eps, x0
+
+
+@pytest.mark.parametrize("t,t_prev", [(981, 961), (501, 481), (1, -19)])
+def test_one_ddim_step_matches_closed_form(ddim, t, t_prev):
+    x_t = torch.randn(3, 256, generator=_gen(1))
+    eps = torch.randn(3, 256, generator=_gen(2))
+    out = ddim.step(eps, torch.tensor(t), x_t, eta=0.0)
+    ac = ddim.alphas_cumprod.double().numpy()
+    want, x0 = _ddim_closed_form(ac, x_t.double().numpy(), eps.double().numpy(), t, t_prev)
+    np.testing.assert_allclose(out.prev_sample.numpy(), want, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(out.pred_original_sample.numpy(), x0, rtol=1e-5, atol=1e-5)
+
+
+def test_clip_sample_off_lets_large_x0_through():
+    x_t = torch.full((1, 4), 50.0)
+    eps = torch.zeros(1, 4)
+    results = {}
+    for clip in (False, True):
+        s = make_ddim_scheduler(DiffusionConfig(clip_sample=clip))
+        ac0 = float(s.alphas_cumprod[0])
+        results[clip] = s.step(eps, torch.tensor(1), x_t, eta=0.0)
+    x0 = 50.0 / np.sqrt(float(make_ddpm_scheduler().alphas_cumprod[1]))
+    assert results[False].pred_original_sample[0, 0].item() == pytest.approx(x0, rel=1e-5)
+    assert results[False].prev_sample[0, 0].item() == pytest.approx(np.sqrt(ac0) * x0, rel=1e-5)
+    assert results[True].pred_original_sample.max().item() == 1.0
+    assert results[True].prev_sample[0, 0].item() == pytest.approx(np.sqrt(ac0), rel=1e-5)
+
+
+def test_add_noise_matches_forward_process(ddpm):
+    z0 = torch.randn(4, 256, generator=_gen(3))
+    noise = torch.randn(4, 256, generator=_gen(4))
+    t = torch.tensor([0, 10, 500, 999])
+    ac = ddpm.alphas_cumprod[t].double()[:, None]
+    want = ac.sqrt() * z0.double() + (1 - ac).sqrt() * noise.double()
+    torch.testing.assert_close(add_noise(ddpm, z0, noise, t).double(), want, rtol=1e-5, atol=1e-6)
+    a = ddpm.alphas_cumprod[250].double()
+    torch.testing.assert_close(add_noise(ddpm, z0, noise, 250).double(), a.sqrt() * z0.double() + (1 - a).sqrt() * noise.double(),
+                               rtol=1e-5, atol=1e-6)
+
+
+def test_sample_timesteps_and_noise_are_per_sample():
+    t = sample_timesteps(_gen(5), 1000, 1000)
+    assert t.dtype == torch.int64 and 0 <= t.min() and t.max() <= 999 and len(t.unique()) > 500
+    rows = draw_noise(make_generators([7, 8, 9]), 3, 16)
+    torch.testing.assert_close(rows[1:2], draw_noise(make_generators([8]), 1, 16))
+    with pytest.raises(ValueError):
+        draw_noise(make_generators([1, 2]), 3, 16)
+
+
+# --- denoiser ----------------------------------------------------------------------------------------------
+
+
+def test_denoiser_presets_and_parameter_counts():
+    paper = DenoiserConfig.preset("paper")
+    assert (paper.width, paper.layers, paper.heads, paper.num_tokens) == (1024, 9, 4, 5)
+    n = sum(p.numel() for p in LatentDenoiser(paper).parameters())
+    t = sum(p.numel() for p in LatentDenoiser(DenoiserConfig.preset("tiny")).parameters())
+    print(f"denoiser parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M")
+    assert 60e6 < n < 120e6 and t < 3e6
+
+
+def test_denoiser_output_is_the_first_token(tiny):
+    z = torch.randn(2, 256, generator=_gen(6))
+    t = torch.tensor([3, 700])
+    seen = {}
+    h = tiny.transformer.register_forward_hook(lambda m, i, o: seen.setdefault("out", o))
+    try:
+        eps = tiny(z, t, _conds(2, 7))
+    finally:
+        h.remove()
+    assert eps.shape == (2, 256) and seen["out"].shape == (2, 5, tiny.config.width)
+    torch.testing.assert_close(eps, tiny.output(seen["out"][:, 0]))
+    assert not torch.allclose(eps, tiny.output(seen["out"][:, 1]))
+
+
+def test_denoiser_depends_on_t_and_every_condition(tiny):
+    z = torch.randn(2, 256, generator=_gen(8))
+    t = torch.tensor([100, 100])
+    conds = list(_conds(2, 9))
+    base = tiny(z, t, conds)
+    assert (tiny(z, torch.tensor([101, 101]), conds) - base).abs().max() > 1e-4
+    assert (tiny(z + 0.5, t, conds) - base).abs().max() > 1e-4
+    for k in range(3):
+        changed = list(conds)
+        changed[k] = torch.randn(2, 256, generator=_gen(10 + k))
+        assert (tiny(z, t, changed) - base).abs().max() > 1e-4, f"condition {k} is ignored"
+    torch.testing.assert_close(tiny(z, torch.tensor(100), conds), base)  # a scalar t broadcasts
+    with pytest.raises(ValueError):
+        tiny(z, t, conds[:2])
+    single = LatentDenoiser(DenoiserConfig.preset("tiny", num_conditions=1)).eval()
+    assert single(z, t, (conds[0],)).shape == (2, 256)
+
+
+def test_denoiser_is_batch_independent(tiny):
+    z = torch.randn(3, 256, generator=_gen(13))
+    t = torch.tensor([5, 400, 999])
+    conds = _conds(3, 14)
+    full = tiny(z, t, conds)
+    one = tiny(z[1:2], t[1:2], [c[1:2] for c in conds])
+    torch.testing.assert_close(full[1:2], one, rtol=1e-5, atol=1e-5)
+
+
+# --- sampling loop -----------------------------------------------------------------------------------------
+
+
+def test_ddim_sample_is_reproducible_and_batch_independent(tiny, ddim):
+    conds = _conds(3, 15)
+    a = ddim_sample(tiny, ddim, conds, make_generators([1, 2, 3]))
+    b = ddim_sample(tiny, ddim, conds, make_generators([1, 2, 3]))
+    torch.testing.assert_close(a, b, rtol=0, atol=0)
+    alone = ddim_sample(tiny, ddim, [c[1:2] for c in conds], make_generators([2]))
+    torch.testing.assert_close(a[1:2], alone, rtol=1e-5, atol=1e-5)
+    other = ddim_sample(tiny, ddim, conds, make_generators([1, 20, 3]))
+    assert (other[1] - a[1]).abs().max() > 1e-3
+    torch.testing.assert_close(other[0], a[0], rtol=1e-5, atol=1e-5)
+    z, traj = ddim_sample(tiny, ddim, conds, _gen(4), return_trajectory=True)
+    assert traj.shape == (51, 3, 256) and torch.equal(traj[-1], z)
+    torch.testing.assert_close(traj[0], torch.randn(3, 256, generator=_gen(4)))
+
+
+def test_ddim_sample_with_eta_is_seeded_per_sample(tiny):
+    s = make_ddim_scheduler(DiffusionConfig(num_inference_steps=10))
+    conds = _conds(2, 16)
+    a = ddim_sample(tiny, s, conds, make_generators([5, 6]), eta=1.0)
+    alone = ddim_sample(tiny, s, [c[:1] for c in conds], make_generators([5]), eta=1.0)
+    torch.testing.assert_close(a[:1], alone, rtol=1e-5, atol=1e-5)
+    assert (a - ddim_sample(tiny, s, conds, make_generators([5, 6]), eta=0.0)).abs().max() > 1e-3
+
+
+def _oracle(scheduler, x0):
+    """A perfect ε-predictor for a known clean latent ``x0``."""
+
+    def denoiser(z_t, t, conditions):
+        a = scheduler.alphas_cumprod[t][:, None]
+        return (z_t - a.sqrt() * x0) / (1 - a).sqrt()
+
+    return denoiser
+
+
+def test_ddim_loop_with_an_oracle_recovers_x0():
+    x0 = torch.randn(2, 256, generator=_gen(17))
+    # With set_alpha_to_one=True the final step lands exactly on x0.
+    s1 = make_ddim_scheduler(DiffusionConfig(set_alpha_to_one=True))
+    got = ddim_sample(_oracle(s1, x0), s1, (), _gen(18), batch_size=2)
+    torch.testing.assert_close(got, x0, rtol=1e-4, atol=1e-4)
+    # The paper's setting (set_alpha_to_one=False) stops at the noise level of t = 0: the oracle's ε stays the
+    # initial ε_T, and the result is sqrt(ᾱ_0)·x0 + sqrt(1 - ᾱ_0)·ε_T, within ≈3 % noise of x0.
+    s0 = make_ddim_scheduler(DiffusionConfig())
+    got = ddim_sample(_oracle(s0, x0), s0, (), _gen(18), batch_size=2)
+    noise = torch.randn(2, 256, generator=_gen(18))
+    a_t, a_0 = s0.alphas_cumprod[981], s0.alphas_cumprod[0]
+    eps_t = (noise - a_t.sqrt() * x0) / (1 - a_t).sqrt()
+    torch.testing.assert_close(got, a_0.sqrt() * x0 + (1 - a_0).sqrt() * eps_t, rtol=1e-4, atol=1e-4)
+    assert (got - x0).abs().max() < 0.2

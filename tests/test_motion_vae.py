@@ -1,0 +1,207 @@
+"""Motion VAE and skip transformer: shapes, distribution tokens, cross-attention, skips, determinism, overfit."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+import torch.nn.functional as F
+
+from emogesture.errors import ConfigError
+from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig, kl_loss
+from emogesture.models.skip_transformer import PosSelfAttention, SkipTransformer, SkipTransformerConfig
+
+
+def _gen(seed: int) -> torch.Generator:
+    return torch.Generator().manual_seed(seed)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    """Two threads on a shared 2-core box can be 10-50x slower (OpenMP spinning); use one."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+@pytest.fixture(scope="module")
+def tiny() -> MotionVAE:
+    torch.manual_seed(0)
+    return MotionVAE(MotionVAEConfig.preset("tiny")).eval()
+
+
+def test_presets_and_validation():
+    paper = MotionVAEConfig.preset("paper")
+    assert (paper.feature_dim, paper.frames, paper.latent_dim, paper.width) == (282, 300, 256, 256)
+    assert (paper.layers, paper.heads, paper.ff_dim, paper.dropout) == (9, 4, 1024, 0.1)
+    with pytest.raises(ConfigError):
+        MotionVAEConfig(layers=4)
+    with pytest.raises(ConfigError):
+        MotionVAEConfig(width=66, heads=4)
+    with pytest.raises(ConfigError):
+        MotionVAEConfig.preset("huge")
+
+
+def test_shapes_and_variable_length(tiny):
+    x = torch.randn(2, 300, 282, generator=_gen(1))
+    recon, z, mu, logvar = tiny(x, generator=_gen(2))
+    assert recon.shape == (2, 300, 282)
+    assert z.shape == mu.shape == logvar.shape == (2, 256)
+    assert tiny.decode(z, frames=120).shape == (2, 120, 282)
+    assert tiny(x[:, :90], sample=False)[0].shape == (2, 90, 282)
+    with pytest.raises(ValueError):
+        tiny.encode(torch.randn(1, 301, 282))
+    with pytest.raises(ValueError):
+        tiny.decode(z, frames=301)
+    with pytest.raises(ValueError):
+        tiny.encode(torch.randn(1, 30, 281))
+
+
+def test_mu_and_logvar_come_from_the_two_distribution_tokens(tiny):
+    x = torch.randn(2, 50, 282, generator=_gen(3))
+    seen = {}
+    handle = tiny.encoder.register_forward_hook(lambda m, i, o: seen.setdefault("out", o))
+    try:
+        _, mu, logvar = tiny.encode(x, sample=False)
+    finally:
+        handle.remove()
+    out = seen["out"]
+    assert out.shape == (2, 52, tiny.config.width)  # 2 distribution tokens + 50 frames
+    torch.testing.assert_close(mu, tiny.to_mu(out[:, 0]))
+    torch.testing.assert_close(logvar, tiny.to_logvar(out[:, 1]))
+    # The token parameters matter: perturbing the μ token changes μ.
+    vae = MotionVAE(tiny.config).eval()
+    vae.load_state_dict(tiny.state_dict())
+    with torch.no_grad():
+        vae.dist_tokens[0, 0] += 1.0
+    assert (vae.encode(x, sample=False)[1] - mu).abs().max() > 1e-3
+
+
+def test_decoder_reads_z_only_through_cross_attention(tiny):
+    z1, z2 = torch.randn(2, 2, 256, generator=_gen(4))
+    assert (tiny.decode(z1, 40) - tiny.decode(z2, 40)).abs().max() > 1e-3
+    vae = MotionVAE(tiny.config).eval()
+    vae.load_state_dict(tiny.state_dict())
+    with torch.no_grad():
+        for block in [*vae.decoder.input_blocks, vae.decoder.middle_block, *vae.decoder.output_blocks]:
+            block.cross.proj.weight.zero_()
+            block.cross.proj.bias.zero_()
+    torch.testing.assert_close(vae.decode(z1, 40), vae.decode(z2, 40))
+
+
+def test_skip_connections_fuse_mirrored_input_blocks():
+    cfg = SkipTransformerConfig(width=32, layers=9, heads=4, ff_dim=64, dropout=0.0)
+    net = SkipTransformer(cfg).eval()
+    assert len(net.input_blocks) == len(net.output_blocks) == len(net.fuse) == 4
+    assert all(f.in_features == 64 and f.out_features == 32 for f in net.fuse)
+    outs, fused_inputs = [], []
+    hooks = [b.register_forward_hook(lambda m, i, o: outs.append(o)) for b in net.input_blocks]
+    hooks += [f.register_forward_hook(lambda m, i, o: fused_inputs.append(i[0])) for f in net.fuse]
+    try:
+        net(torch.randn(2, 7, 32, generator=_gen(5)), torch.randn(1, 7, 32, generator=_gen(6)))
+    finally:
+        for h in hooks:
+            h.remove()
+    # Output block k fuses input block (3 - k): the skip is the second half of the concatenation.
+    for k, inp in enumerate(fused_inputs):
+        torch.testing.assert_close(inp[..., 32:], outs[3 - k])
+    paper = MotionVAE(MotionVAEConfig.preset("paper"))
+    assert len(paper.encoder.fuse) == len(paper.decoder.fuse) == 4
+
+
+def test_positional_embedding_enters_every_attention_layer():
+    cfg = SkipTransformerConfig(width=32, layers=5, heads=4, ff_dim=64, dropout=0.0)
+    net = SkipTransformer(cfg).eval()
+    x = torch.randn(2, 6, 32, generator=_gen(7))
+    perm = torch.tensor([3, 0, 5, 1, 4, 2])
+    # Without positions the stack is permutation-equivariant ...
+    torch.testing.assert_close(net(x[:, perm]), net(x)[:, perm])
+    pos = torch.randn(1, 6, 32, generator=_gen(8))
+    got = []
+    hooks = [m.register_forward_hook(lambda m, i, o: got.append(i[1] if len(i) > 1 else None))
+             for m in net.modules() if isinstance(m, PosSelfAttention)]
+    try:
+        y = net(x, pos)
+    finally:
+        for h in hooks:
+            h.remove()
+    # ... every self-attention layer receives the positional embedding, which breaks the symmetry.
+    assert len(got) == 5 and all(p is pos for p in got)
+    assert (net(x[:, perm], pos) - y[:, perm]).abs().max() > 1e-3
+
+
+def test_paper_parameter_count():
+    n = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("paper")).parameters())
+    t = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("tiny")).parameters())
+    print(f"motion VAE parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M")
+    assert 12e6 < n < 25e6  # 9+9 layers of width 256, ff 1024 (+ cross-attention in the decoder)
+    assert t < 1e6
+
+
+def test_gradients_reach_every_parameter():
+    torch.manual_seed(0)
+    vae = MotionVAE(MotionVAEConfig.preset("tiny", frames=20)).train()
+    x = torch.randn(3, 20, 282, generator=_gen(9))
+    recon, z, mu, logvar = vae(x, generator=_gen(10))
+    (F.smooth_l1_loss(recon, x) + 1e-4 * vae.kl_loss(mu, logvar)).backward()
+    missing = {n for n, p in vae.named_parameters() if p.grad is None or not p.grad.abs().sum() > 0}
+    # With a single memory token (z) the cross-attention softmax is identically 1, so its query path
+    # (norm_cross, cross.q) is inert by construction; everything else must learn.
+    inert = {n for n, _ in vae.named_parameters() if ".norm_cross." in n or ".cross.q." in n}
+    assert len(inert) == 4 * 3 and missing == inert
+
+
+def test_sampling_is_reproducible(tiny):
+    x = torch.randn(2, 40, 282, generator=_gen(11))
+    z_a, mu, logvar = tiny.encode(x, sample=False)
+    torch.testing.assert_close(z_a, mu)
+    torch.testing.assert_close(tiny.encode(x, sample=False)[0], z_a)
+    s1 = tiny.encode(x, generator=_gen(12))[0]
+    s2 = tiny.encode(x, generator=_gen(12))[0]
+    s3 = tiny.encode(x, generator=_gen(13))[0]
+    torch.testing.assert_close(s1, s2)
+    assert (s1 - s3).abs().max() > 1e-3
+    eps = torch.randn(2, 256, generator=_gen(12))
+    torch.testing.assert_close(s1, mu + torch.exp(0.5 * logvar) * eps)
+
+
+def test_kl_loss_closed_form():
+    mu = torch.randn(4, 256, generator=_gen(14))
+    logvar = torch.randn(4, 256, generator=_gen(15)) * 0.3
+    q = torch.distributions.Normal(mu, torch.exp(0.5 * logvar))
+    p = torch.distributions.Normal(torch.zeros_like(mu), torch.ones_like(mu))
+    torch.testing.assert_close(kl_loss(mu, logvar), torch.distributions.kl_divergence(q, p).sum(-1).mean())
+    assert kl_loss(torch.zeros(2, 8), torch.zeros(2, 8)).item() == 0.0
+
+
+def test_tiny_vae_overfits_a_small_batch():
+    torch.manual_seed(0)
+    g = _gen(16)
+    frames = 32
+    vae = MotionVAE(MotionVAEConfig.preset("tiny", frames=frames))
+    basis = torch.randn(3, 282, generator=g)
+    phase = torch.rand(4, 3, generator=g) * 2 * math.pi
+    t = torch.arange(frames, dtype=torch.float32)
+    waves = torch.sin(2 * math.pi * torch.tensor([1.0, 2.0, 3.0]) * t[None, :, None] / frames + phase[:, None, :])
+    x = torch.einsum("btk,kf->btf", waves, basis) / math.sqrt(1.5)  # 4 smooth windows, unit scale
+
+    def error() -> float:
+        vae.eval()
+        with torch.no_grad():
+            e = F.mse_loss(vae(x, sample=False)[0], x).item()
+        vae.train()
+        return e
+
+    before = error()
+    opt = torch.optim.AdamW(vae.parameters(), lr=3e-4)
+    for _ in range(300):
+        recon, _, mu, logvar = vae(x, generator=g)
+        loss = F.smooth_l1_loss(recon, x) + 1e-4 * kl_loss(mu, logvar)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    after = error()
+    print(f"overfit: reconstruction MSE {before:.3f} -> {after:.3f}")
+    assert after < 0.5 * before
