@@ -37,6 +37,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
     _engine_args(p)
     p.set_defaults(func=run_train_extractor)
+    p = tsub.add_parser("gesture", help="the gesture generator: motion prior + latent diffusion (joint training)")
+    p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
+    p.add_argument("--variant", default="joint", choices=["joint", "disjoint", "no_prior", "no_audio"],
+                   help="joint (the paper's model) or one of its ablations")
+    p.add_argument("--speech", type=Path, help="run folder of `emogesture train speech` (all variants but no_audio)")
+    _engine_args(p)
+    p.set_defaults(func=run_train_gesture)
 
 
 def run_train_speech(args: argparse.Namespace) -> int:
@@ -55,14 +62,26 @@ def run_train_extractor(args: argparse.Namespace) -> int:
     return _run(args, "train extractor", config, build, "motion feature extractor")
 
 
-def _run(args: argparse.Namespace, command: str, config, build, what: str) -> int:
+def run_train_gesture(args: argparse.Namespace) -> int:
+    from emogesture.errors import EmogestureError
+    from emogesture.train.gesture import GestureTrainConfig, build
+
+    if args.variant != "no_audio" and args.speech is None:
+        raise EmogestureError("--speech RUN is needed (a trained speech model), except for --variant no_audio")
+    base = to_dict(GestureTrainConfig.preset(args.preset, args.variant))
+    config = load_config(GestureTrainConfig, args.config, args.overrides, base=base)
+    return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech), "gesture model",
+                {"speech": str(args.speech.resolve()) if args.speech else None})
+
+
+def _run(args: argparse.Namespace, command: str, config, build, what: str, more: dict | None = None) -> int:
     from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
 
     settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=args.accelerator,
                            precision=args.precision, checkpoint_every=args.checkpoint_every,
                            progress=not args.quiet, seed=args.seed)
     blob = {"command": command, "config": to_dict(config), "data": str(args.data.resolve()),
-            "seed": args.seed, "precision": args.precision}
+            "seed": args.seed, "precision": args.precision, **(more or {})}
     resume = check_run_dir(args.out, blob, args.overwrite)
     data, module, export = build(config, args.data, args.seed)
     trainer = make_trainer(args.out, settings, lambda m: export(m, args.out))
