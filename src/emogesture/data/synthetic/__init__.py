@@ -1,0 +1,16 @@
+"""Synthetic BEAT2-layout corpus: real speech synthesis plus procedural, speech-timed SMPL-X gestures
+with known emotion, speaker and content factors (SPEC §7)."""
+
+from emogesture.data.synthetic.corpus import CorpusConfig, CorpusSummary, build_corpus, plan_takes, text_split
+from emogesture.data.synthetic.factors import EMOTION_FACTORS, VOICES, make_speaker
+
+__all__ = [
+    "EMOTION_FACTORS",
+    "VOICES",
+    "CorpusConfig",
+    "CorpusSummary",
+    "build_corpus",
+    "make_speaker",
+    "plan_takes",
+    "text_split",
+]

@@ -34,16 +34,17 @@ class Voice:
     native_pitch: bool = True
 
 
-#: Voices in speaker order (speakers 1-8 match the BEAT names' genders); reused cyclically beyond.
+#: Voices in speaker order, reused cyclically (with further pitch/timbre offsets) beyond the table;
+#: the first three speakers already cover all three engines.
 VOICES: tuple[Voice, ...] = (
     Voice("flite", "rms", 103.0, 2.87, native_pitch=False),
     Voice("espeak-ng", "en-us+m3", 107.0, 3.30),
+    Voice("festival", "cmu_us_slt_arctic_hts", 168.0, 2.97, native_pitch=False),
+    Voice("flite", "slt", 170.0, 3.17),
+    Voice("espeak-ng", "en-us+f2", 198.0, 3.22),
     Voice("flite", "awb", 128.0, 3.23),
     Voice("flite", "kal16", 95.0, 3.30),
     Voice("espeak-ng", "en-gb-scotland+m1", 96.0, 3.31),
-    Voice("flite", "slt", 170.0, 3.17),
-    Voice("festival", "cmu_us_slt_arctic_hts", 168.0, 2.97, native_pitch=False),
-    Voice("espeak-ng", "en-us+f2", 198.0, 3.22),
     Voice("espeak-ng", "en+f4", 182.0, 3.21),
     Voice("espeak-ng", "en-gb-x-rp+m7", 109.0, 3.25),
     Voice("flite", "kal", 95.0, 3.30),
@@ -56,13 +57,17 @@ VOICES: tuple[Voice, ...] = (
 @dataclass(frozen=True)
 class Prosody:
     """Speech factors. ``pitch`` semitones, ``pitch_range`` × F0 spread, ``rate`` × speaking rate,
-    ``gain_db`` loudness, ``tilt`` spectral tilt (+ brighter / − duller, vocal effort)."""
+    ``gain_db`` loudness, ``tilt`` spectral tilt (+ brighter / − duller, vocal effort),
+    ``breathiness`` aspiration noise riding on the speech (0-1), ``tremolo`` 5.5 Hz amplitude
+    modulation depth (a shaky voice)."""
 
     pitch: float = 0.0
     pitch_range: float = 1.0
     rate: float = 1.0
     gain_db: float = 0.0
     tilt: float = 0.0
+    breathiness: float = 0.0
+    tremolo: float = 0.0
 
 
 #: Posture channels (radians, added to the rest pose): spine lean forward (+) / back (−), spine side
@@ -101,26 +106,29 @@ def _emo(name: str, prosody: Prosody, motion: MotionStyle) -> Emotion:
 
 EMOTION_FACTORS: dict[str, Emotion] = {e.name: e for e in (
     _emo("neutral", Prosody(), MotionStyle()),
-    _emo("happiness", Prosody(pitch=2.5, pitch_range=1.5, rate=1.08, gain_db=2.0, tilt=0.25),
+    _emo("happiness", Prosody(pitch=3.0, pitch_range=1.5, rate=1.06, gain_db=3.0, tilt=0.35),
          MotionStyle(amplitude=1.4, speed=1.15, rate=1.2,
                      posture=dict(lean=-0.04, head_pitch=-0.1, abduct=0.16, elbow=0.3, flex=0.1))),
-    _emo("anger", Prosody(pitch=1.5, pitch_range=1.3, rate=1.12, gain_db=5.0, tilt=0.55),
+    _emo("anger", Prosody(pitch=1.0, pitch_range=1.2, rate=1.12, gain_db=7.0, tilt=0.8),
          MotionStyle(amplitude=1.5, speed=1.7, rate=1.25,
                      posture=dict(lean=0.14, head_pitch=0.08, shrug=0.05, elbow=0.35, flex=0.12))),
-    _emo("sadness", Prosody(pitch=-2.5, pitch_range=0.55, rate=0.82, gain_db=-5.0, tilt=-0.35),
+    _emo("sadness", Prosody(pitch=-3.0, pitch_range=0.5, rate=0.78, gain_db=-6.0, tilt=-0.5,
+                                breathiness=0.25),
          MotionStyle(amplitude=0.45, speed=0.6, rate=0.6,
                      posture=dict(lean=0.22, head_pitch=0.35, shrug=-0.08, abduct=-0.05, elbow=-0.15))),
-    _emo("contempt", Prosody(pitch=-1.0, pitch_range=0.8, rate=0.92, gain_db=-1.0, tilt=0.0),
+    _emo("contempt", Prosody(pitch=-2.0, pitch_range=0.8, rate=0.9, gain_db=-1.5, tilt=0.25),
          MotionStyle(amplitude=0.8, speed=0.85, rate=0.8, asymmetry=0.9,
                      posture=dict(lean=-0.1, side=0.06, head_pitch=-0.14, head_tilt=0.16, twist=0.05))),
-    _emo("surprise", Prosody(pitch=4.0, pitch_range=1.7, rate=1.05, gain_db=3.0, tilt=0.3),
+    _emo("surprise", Prosody(pitch=5.5, pitch_range=1.8, rate=0.96, gain_db=2.0, tilt=0.1),
          MotionStyle(amplitude=1.2, speed=1.4, rate=1.0,
                      posture=dict(lean=-0.06, head_pitch=-0.12, shrug=0.12, elbow=0.45, abduct=0.08))),
-    _emo("fear", Prosody(pitch=3.0, pitch_range=0.7, rate=1.15, gain_db=-2.0, tilt=0.1),
+    _emo("fear", Prosody(pitch=3.0, pitch_range=0.6, rate=1.18, gain_db=-3.0, tilt=-0.1,
+                             breathiness=0.35, tremolo=0.25),
          MotionStyle(amplitude=0.7, speed=1.3, rate=1.1, tremor=0.012,
                      posture=dict(lean=-0.05, head_pitch=0.06, shrug=0.14, abduct=-0.14, flex=0.3,
                                   elbow=0.65))),
-    _emo("disgust", Prosody(pitch=-0.5, pitch_range=0.9, rate=0.95, gain_db=0.0, tilt=-0.1),
+    _emo("disgust", Prosody(pitch=-1.0, pitch_range=0.9, rate=0.88, gain_db=0.5, tilt=-0.35,
+                                breathiness=0.1),
          MotionStyle(amplitude=0.8, speed=1.0, rate=0.9, asymmetry=0.4,
                      posture=dict(lean=-0.08, twist=-0.12, head_turn=-0.32, head_tilt=-0.08,
                                   head_pitch=0.04))),
@@ -201,8 +209,9 @@ def make_jitter(seed: int, speaker_id: int, take: int) -> TakeJitter:
     """Per-take deviations from ``default_rng([seed, 202, speaker_id, take])``."""
     rng = np.random.default_rng([seed, 202, speaker_id, take])
     n = rng.normal
-    prosody = Prosody(pitch=float(n(0, 0.7)), pitch_range=float(np.exp(n(0, 0.12))),
-                      rate=float(np.exp(n(0, 0.04))), gain_db=float(n(0, 1.2)), tilt=float(n(0, 0.1)))
+    prosody = Prosody(pitch=float(n(0, 0.6)), pitch_range=float(np.exp(n(0, 0.12))),
+                      rate=float(np.exp(n(0, 0.04))), gain_db=float(n(0, 1.0)), tilt=float(n(0, 0.08)),
+                      breathiness=float(abs(n(0, 0.04))))
     posture = {k: float(n(0, 0.04)) for k in POSTURE_KEYS}
     return TakeJitter(prosody, float(np.exp(n(0, 0.15))), float(np.exp(n(0, 0.1))),
                       float(np.exp(n(0, 0.1))), posture)
@@ -213,7 +222,8 @@ def combine_prosody(*parts: Prosody) -> Prosody:
     return Prosody(
         pitch=sum(p.pitch for p in parts), pitch_range=float(np.prod([p.pitch_range for p in parts])),
         rate=float(np.prod([p.rate for p in parts])), gain_db=sum(p.gain_db for p in parts),
-        tilt=sum(p.tilt for p in parts),
+        tilt=sum(p.tilt for p in parts), breathiness=sum(p.breathiness for p in parts),
+        tremolo=sum(p.tremolo for p in parts),
     )
 
 

@@ -7,7 +7,7 @@ without pitch control (flite rms, festival's HTS voice) is pitch-shifted by trea
 faster/slower (which also moves the formants), with the engine's rate compensated. The speaker's
 timbre is the same resampling trick (×0.9-1.1). Then, in numpy/scipy only: resample to 16 kHz
 (``resample_poly``), spectral tilt (vocal effort), loudness normalised over voiced frames, the
-emotion/speaker gain, a soft limiter and a seeded noise floor at −66 dBFS. All engines are
+emotion/speaker gain, breathiness and tremolo, a soft limiter and a seeded noise floor at −66 dBFS. All engines are
 deterministic, so the same inputs give the same samples.
 """
 
@@ -108,12 +108,23 @@ def _frame_rms(x: np.ndarray, hop: int = 160) -> np.ndarray:
 
 
 def shape_audio(x: np.ndarray, prosody: Prosody, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Tilt, loudness and gain, soft limit, noise floor. Returns ``(audio [N] float32, clean [N])``."""
+    """Tilt, breathiness, tremolo, loudness and gain, soft limit, noise floor.
+
+    Returns ``(audio [N] float32, clean [N] float32)``; ``clean`` lacks the noise floor.
+    """
     x = x - x.mean()
     # Spectral tilt: add (or remove) the part above ~1 kHz (one-pole low-pass at 16 kHz).
     a = np.exp(-2 * np.pi * 1000.0 / SAMPLE_RATE)
     low = lfilter([1 - a], [1, -a], x)
     x = x + max(prosody.tilt, -0.9) * (x - low)
+    if prosody.breathiness > 0:  # aspiration: high-passed noise following the speech envelope
+        env = lfilter([1 - a], [1, -a], np.abs(x))
+        hiss = rng.standard_normal(len(x))
+        hiss = hiss - lfilter([1 - a], [1, -a], hiss)
+        x = x + 1.5 * prosody.breathiness * env * hiss
+    if prosody.tremolo > 0:
+        t = np.arange(len(x)) / SAMPLE_RATE
+        x = x * (1.0 + prosody.tremolo * np.sin(2 * np.pi * 5.5 * t + rng.uniform(0, 2 * np.pi)))
     rms = _frame_rms(x)
     voiced = rms[rms > rms.max() * 10 ** (-35 / 20)]
     level = np.sqrt(np.mean(voiced**2)) if voiced.size else 1.0
@@ -125,7 +136,7 @@ def shape_audio(x: np.ndarray, prosody: Prosody, rng: np.random.Generator) -> tu
     return (x + noise).astype(np.float32), x.astype(np.float32)
 
 
-def speech_segments(clean: np.ndarray, min_gap: float = 0.12, min_len: float = 0.05) -> list[tuple[float, float]]:
+def speech_segments(clean: np.ndarray, min_gap: float = 0.18, min_len: float = 0.05) -> list[tuple[float, float]]:
     """Voiced stretches ``[(start s, end s)]`` of a noise-free signal by a 10 ms energy gate
     (30 dB below the loud frames, and 10 dB above the quietest ones)."""
     hop = SAMPLE_RATE // 100

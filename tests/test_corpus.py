@@ -1,0 +1,298 @@
+"""The synthetic corpus (SPEC §6, §7): layout, determinism, resume, and that its factors are real.
+
+One small corpus (4 speakers × 8 emotions × 3 texts, takes ≥ 8 s, 2 worker processes) is built
+once for the module; a 1-speaker corpus (8 takes, in-process) checks determinism and resuming.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+import torch
+
+from emogesture.audio import detect_onsets, kaldi_fbank, load_audio
+from emogesture.data.beat import (
+    EMOTIONS,
+    SPEAKERS,
+    group_takes_by_text,
+    parse_take_name,
+    read_sem,
+    read_split_csv,
+    read_textgrid_words,
+)
+from emogesture.data.synthetic import CorpusConfig, build_corpus, plan_takes, text_split
+from emogesture.data.synthetic.speech import word_timings
+from emogesture.data.synthetic.takes import TakePlan, build_take
+from emogesture.errors import ConfigError, EmogestureError
+from emogesture.motion import ARM_JOINTS, LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, SkeletonBody, load_smplx_npz
+
+MIN_SECONDS = 8.0
+SEED = 0
+FILES = {"smplxflame_30": ".npz", "wave16k": ".wav", "textgrid": ".TextGrid", "sem": ".txt"}
+
+
+def _config(**kw) -> CorpusConfig:
+    base = dict(speakers=4, texts_per_emotion=3, min_take_seconds=MIN_SECONDS, seed=SEED, workers=2)
+    base.update(kw)
+    return CorpusConfig(**base)
+
+
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory):
+    root = tmp_path_factory.mktemp("corpus") / "beat2"
+    summary = build_corpus(root, _config(), progress=False)
+    return root, summary
+
+
+@pytest.fixture(scope="module")
+def mini(tmp_path_factory):
+    root = tmp_path_factory.mktemp("mini") / "beat2"
+    summary = build_corpus(root, _config(speakers=1, texts_per_emotion=1, workers=1), progress=False)
+    return root, summary
+
+
+def _bytes(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+# --- small pieces -------------------------------------------------------------------------------
+
+def test_config_validation():
+    for bad in (dict(speakers=0), dict(speakers=31), dict(texts_per_emotion=7), dict(workers=0),
+                dict(engines=("say",)), dict(min_take_seconds=0.1)):
+        with pytest.raises(ConfigError):
+            _config(**bad).validate()
+    assert "workers" not in _config().identity()
+
+
+def test_plan_holds_out_whole_texts():
+    plans, splits = plan_takes(_config(speakers=3, texts_per_emotion=4))
+    assert len(plans) == 3 * 8 * 4
+    assert [text_split(i, 4) for i in range(4)] == ["train", "train", "val", "test"]
+    assert [text_split(i, 2) for i in range(2)] == ["train", "test"]
+    for (_, take), infos in group_takes_by_text(list(splits)).items():
+        assert len({splits[i.name] for i in infos}) == 1  # every speaker of a text: same split
+        assert len(infos) == 3
+
+
+def test_word_timings_follow_voiced_segments():
+    segments = [(0.5, 1.5), (2.0, 3.0)]
+    words = word_timings("one two three four.", segments)
+    assert [w for *_, w in words] == ["one", "two", "three", "four"]
+    starts, ends = np.array([w[0] for w in words]), np.array([w[1] for w in words])
+    assert np.all(ends > starts) and np.all(starts[1:] >= ends[:-1] - 1e-9)
+    for s, e in zip(starts, ends):  # nobody straddles the pause
+        assert (0.5 <= s and e <= 1.5 + 1e-9) or (2.0 - 1e-9 <= s and e <= 3.0 + 1e-9)
+
+
+# --- the module corpus --------------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_layout_and_naming(corpus):
+    root, summary = corpus
+    assert summary.takes == 96 and summary.built == 96 and summary.splits == {"train": 64, "test": 32}
+    names = sorted(p.stem for p in (root / "smplxflame_30").glob("*.npz"))
+    assert len(names) == 96
+    for sub, suffix in FILES.items():
+        assert sorted(p.name for p in (root / sub).iterdir()) == sorted(n + suffix for n in names)
+    splits = read_split_csv(root / "train_test_split.csv")
+    assert sorted(splits) == names
+    manifest = json.loads((root / "corpus.json").read_text())
+    assert manifest["config"]["speakers"] == 4 and len(manifest["speakers"]) == 4
+    for name in names:
+        info = parse_take_name(name)
+        assert info.speaker == SPEAKERS[info.speaker_id] and 1 <= info.speaker_id <= 4
+        assert info.is_speech and manifest["takes"][name]["split"] == splits[name]
+        text = next(t for t in manifest["texts"] if t["take"] == info.take)
+        assert text["emotion"] == EMOTIONS[info.emotion]
+        wav = sf.info(str(root / "wave16k" / f"{name}.wav"))
+        assert (wav.samplerate, wav.channels, wav.subtype) == (16000, 1, "PCM_16")
+        duration = wav.frames / 16000
+        assert duration >= MIN_SECONDS
+        seq = load_smplx_npz(root / "smplxflame_30" / f"{name}.npz")
+        assert seq.poses.shape[1:] == (55, 3) and abs(seq.num_frames - round(duration * 30)) <= 1
+        assert np.all(seq.poses[:, LOWER_BODY_JOINTS] == 0) and np.all(seq.trans == 0)
+        assert np.isfinite(seq.poses).all() and np.abs(seq.poses).max() < np.pi
+        words = read_textgrid_words(root / "textgrid" / f"{name}.TextGrid")
+        assert len(words) >= 15 and words[-1][1] <= duration + 1e-3
+        assert all(a < b for a, b, _ in words) and all(w1[1] <= w2[0] + 1e-6 for w1, w2 in zip(words, words[1:]))
+        sem = read_sem(root / "sem" / f"{name}.txt")
+        assert len(sem) >= duration * 0.3  # at least a stroke every ~3 s
+        assert all(0 <= s.score <= 1 and 0 <= s.start < s.end <= duration for s in sem)
+
+
+@pytest.mark.slow
+def test_every_speaker_speaks_every_text(corpus):
+    root, _ = corpus
+    for (_, take), infos in group_takes_by_text(sorted(p.stem for p in (root / "textgrid").iterdir())).items():
+        assert [i.speaker_id for i in infos] == [1, 2, 3, 4]
+        texts = [[w for *_, w in read_textgrid_words(root / "textgrid" / f"{i.name}.TextGrid")] for i in infos]
+        shortest = min(texts, key=len)
+        assert all(t[: len(shortest)] == shortest for t in texts)  # same text; a long take may add sentences
+
+
+@pytest.mark.slow
+def test_motion_is_anatomically_plausible(corpus):
+    root, _ = corpus
+    body = SkeletonBody()
+    for name in sorted(p.stem for p in (root / "smplxflame_30").glob("*.npz"))[::7]:
+        joints = body(torch.from_numpy(load_smplx_npz(root / "smplxflame_30" / f"{name}.npz").poses)).numpy()
+        wrists, shoulders, head, chest = joints[:, [20, 21]], joints[:, [16, 17]], joints[:, 15], joints[:, 9]
+        assert np.all(wrists[..., 1] < head[:, None, 1])  # hands below the head
+        assert np.all(wrists[..., 1] > shoulders[..., 1] - 0.65)  # and not below arm's length
+        in_front = wrists[..., 2] - chest[:, None, 2] > 0.05
+        beside = np.abs(wrists[..., 0] - chest[:, None, 0]) > 0.17
+        assert np.all(in_front | beside), name  # never through the torso
+        speed = np.linalg.norm(np.diff(wrists, axis=0), axis=-1) * 30
+        assert speed.max() < 4.0 and speed.mean() > 0.02
+
+
+# --- determinism and resume ---------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_same_seed_same_bytes(corpus, mini, tmp_path):
+    """Takes do not depend on the corpus size, worker count or order: the 1-speaker corpus (built
+    in-process) and single takes rebuilt here equal the module corpus (built by 2 workers)."""
+    root, _ = corpus
+    small, _ = mini
+    for sub, suffix in FILES.items():
+        for p in (small / sub).iterdir():
+            assert p.read_bytes() == (root / sub / p.name).read_bytes(), p.name
+    for plan in (TakePlan(2, 75, 2, 2, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival")),  # espeak-ng
+                 TakePlan(3, 104, 6, 1, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival"))):  # festival
+        build_take(tmp_path, plan)
+        for sub, suffix in FILES.items():
+            assert (tmp_path / sub / f"{plan.name}{suffix}").read_bytes() == \
+                (root / sub / f"{plan.name}{suffix}").read_bytes()
+
+
+@pytest.mark.slow
+def test_resume_rebuilds_exactly_the_damaged_takes(mini, tmp_path):
+    src, _ = mini
+    root = tmp_path / "copy"
+    shutil.copytree(src, root)
+    before = _bytes(root)
+    assert build_corpus(root, _config(speakers=1, texts_per_emotion=1, workers=1), progress=False).built == 0
+    assert _bytes(root) == before  # a complete corpus: nothing rewritten
+    (root / "smplxflame_30" / "1_wayne_0_65_65.npz").unlink()
+    wav = root / "wave16k" / "1_wayne_0_81_81.wav"
+    wav.write_bytes(b"JUNK" + wav.read_bytes()[4:])  # broken RIFF header
+    (root / "corpus.json").unlink()  # as if interrupted before the end
+    (root / "sem" / ".1_wayne_0_1_1.txt.123.abcd.tmp").write_text("partial")
+    summary = build_corpus(root, _config(speakers=1, texts_per_emotion=1, workers=1), progress=False)
+    assert (summary.built, summary.skipped) == (2, 6)
+    assert _bytes(root) == before
+    with pytest.raises(EmogestureError, match="other settings"):
+        build_corpus(root, _config(speakers=1, texts_per_emotion=1, seed=1), progress=False)
+    with pytest.raises(EmogestureError, match="already holds"):
+        build_corpus(root, _config(speakers=1, texts_per_emotion=1), progress=False, resume=False)
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(EmogestureError, match="not a synthetic corpus"):
+        build_corpus(tmp_path / "other", _config(speakers=1, texts_per_emotion=1), progress=False)
+
+
+# --- the generating factors are recoverable -----------------------------------------------------
+
+def _audio_features(wave: np.ndarray) -> np.ndarray:
+    """Mean and std over time of the 128 log-mel bins, plus loudness, voiced share and onset rate."""
+    fb = kaldi_fbank(wave).numpy()
+    level = fb[:, :100].mean(axis=1)
+    voiced = level > np.percentile(level, 95) - 8.0
+    onsets_per_voiced_s = len(detect_onsets(wave)) / (voiced.mean() * len(wave) / 16000)
+    return np.concatenate([fb.mean(0), fb.std(0), [level[voiced].mean(), voiced.mean(), onsets_per_voiced_s]])
+
+
+def _motion_features(poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """Mean and std of the upper-body axis-angle poses and of the upper-body joint speeds (FK)."""
+    p = poses[:, UPPER_BODY_JOINTS].reshape(len(poses), -1)
+    v = np.linalg.norm(np.diff(joints[:, UPPER_BODY_JOINTS], axis=0), axis=-1) * 30
+    return np.concatenate([p.mean(0), p.std(0), v.mean(0), v.std(0)])
+
+
+def _motion_beats(joints: np.ndarray) -> np.ndarray:
+    """SPEC §8 BA motion beats: local minima (order 7) of each arm joint's speed over its mean, > 0.1."""
+    from scipy.signal import argrelextrema
+
+    v = np.linalg.norm(np.diff(joints[:, ARM_JOINTS], axis=0), axis=-1) * 30
+    beats = []
+    for k in range(v.shape[1]):
+        vk = v[:, k] / (v[:, k].mean() + 1e-9)
+        m = argrelextrema(vk, np.less, order=7)[0]
+        beats.append((m[vk[m] > 0.1] + 0.5) / 30.0)  # speed m lies between frames m and m + 1
+    return np.sort(np.concatenate(beats))
+
+
+def _beat_align(beats: np.ndarray, onsets: np.ndarray, sigma: float) -> float:
+    d = np.abs(beats[:, None] - onsets[None, :]).min(axis=1)
+    return float(np.exp(-(d**2) / (2 * sigma**2)).mean())
+
+
+@pytest.fixture(scope="module")
+def measured(corpus):
+    root, _ = corpus
+    body = SkeletonBody()
+    splits = read_split_csv(root / "train_test_split.csv")
+    rows = []
+    for name in sorted(splits):
+        info = parse_take_name(name)
+        wave, _ = load_audio(root / "wave16k" / f"{name}.wav")
+        seq = load_smplx_npz(root / "smplxflame_30" / f"{name}.npz")
+        joints = body(torch.from_numpy(seq.poses)).numpy()
+        rows.append(dict(emotion=info.emotion, speaker=info.speaker_id, split=splits[name],
+                         audio=_audio_features(wave), motion=_motion_features(seq.poses, joints),
+                         onsets=detect_onsets(wave), beats=_motion_beats(joints), seconds=len(wave) / 16000))
+    return rows
+
+
+@pytest.mark.slow
+def test_emotion_and_speaker_recoverable_from_audio_and_motion(measured):
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    train = np.array([r["split"] == "train" for r in measured])
+    test = np.array([r["split"] == "test" for r in measured])
+    results = {}
+    for modality in ("audio", "motion"):
+        x = np.stack([r[modality] for r in measured])
+        for factor in ("emotion", "speaker"):
+            y = np.array([r[factor] for r in measured])
+            clf = make_pipeline(StandardScaler(), LogisticRegression(C=0.1, max_iter=5000))
+            clf.fit(x[train], y[train])
+            results[(modality, factor)] = float((clf.predict(x[test]) == y[test]).mean())
+    print("\nheld-out-text accuracy (chance: emotion 0.125, speaker 0.25):",
+          {f"{m}/{f}": round(a, 3) for (m, f), a in results.items()})
+    assert results[("audio", "emotion")] >= 0.6
+    assert results[("motion", "emotion")] >= 0.6
+    assert results[("audio", "speaker")] >= 0.75
+    assert results[("motion", "speaker")] >= 0.75
+
+
+@pytest.mark.slow
+def test_motion_beats_follow_the_audio_onsets(measured):
+    """BA (SPEC §8, σ 0.3 s) with the take's own onsets beats the same onsets shifted in time."""
+    from scipy.stats import wilcoxon
+
+    report = {}
+    for sigma in (0.3, 0.1):
+        own, shifted = [], []
+        for r in measured:
+            on, dur = r["onsets"], r["seconds"]
+            own.append(_beat_align(r["beats"], on, sigma))
+            shifted.append(np.mean([_beat_align(r["beats"], np.sort((on + s) % dur), sigma)
+                                    for s in (0.37, 1.1, dur / 2)]))
+        own, shifted = np.array(own), np.array(shifted)
+        report[sigma] = (own.mean(), shifted.mean(), (own > shifted).mean(), wilcoxon(own, shifted).pvalue)
+    for sigma, (own, shifted, share, p) in report.items():
+        print(f"\nBA sigma {sigma} s: own onsets {own:.4f}, shifted onsets {shifted:.4f}, "
+              f"own > shifted in {share:.0%} of takes, Wilcoxon p = {p:.1e}")
+    own, shifted, share, p = report[0.3]
+    assert own > shifted and share >= 0.65 and p < 1e-4
+    own, shifted, share, p = report[0.1]
+    assert own - shifted >= 0.03 and share >= 0.8 and p < 1e-6
