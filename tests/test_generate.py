@@ -30,7 +30,6 @@ def runs(tmp_path_factory):
         "prepare_config": to_dict(PrepareConfig()), "step": 0})
     gcfg = GestureModelConfig.preset("tiny")
     gcfg.diffusion.num_inference_steps = 5
-    from safetensors.torch import load_file  # noqa: F401  (sha is read from the json)
     import json
     sha = json.loads(speech_json.read_text())["weights_sha256"]
     save_model(d / "gesture", "gesture", GestureModel(gcfg), gcfg, {

@@ -2,8 +2,6 @@
 
 import json
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,12 +9,7 @@ import pytest
 from emogesture.data.beat import write_split_csv
 from emogesture.data.prepare import prepare
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_prepare import make_root  # noqa: E402
-
-
-def cli(*args):
-    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+from helpers import cli, make_root
 
 
 @pytest.fixture(scope="module")

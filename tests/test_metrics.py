@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
+from emogesture.motion.skeleton import LOWER_BODY_JOINTS
 from emogesture.eval import classification as cls
 from emogesture.eval import metrics as M
 from emogesture.eval.plots import save_confusion_matrix
@@ -203,7 +204,7 @@ def test_srgr_weighted_recall():
     sem = np.array([0.0, 0.5, 1.0, 0.165])
     hits = np.array([10, 47, 24, 0])
     err = np.full((t, 55), 0.2)
-    err[:, list(M.LOWER_BODY_JOINTS)] = 0.0  # lower body is perfect but must not count
+    err[:, list(LOWER_BODY_JOINTS)] = 0.0  # lower body is perfect but must not count
     for f in range(t):
         err[f, upper[rng.permutation(47)[: hits[f]]]] = 0.05
     direction = rng.normal(size=(t, 55, 3))

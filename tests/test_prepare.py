@@ -1,47 +1,16 @@
 """`emogesture prepare`: cache layout, idempotence, resume after a kill, bad input."""
 
-import os
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
-import soundfile as sf
 
-from emogesture.data.beat import format_take_name, write_split_csv
 from emogesture.data.cache import open_cache
 from emogesture.data.prepare import PrepareConfig, prepare
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.motion import save_smplx_npz
-from emogesture.types import SMPLXSequence
-
-SECONDS = 21.0
-
-
-def make_root(root: Path, speakers=(1, 2), takes=(1, 2, 65, 66), seed=0) -> list[str]:
-    """A small BEAT2-layout folder: tone-burst audio and smooth random upper-body motion."""
-    rng = np.random.default_rng(seed)
-    for d in ("smplxflame_30", "wave16k", "sem"):
-        (root / d).mkdir(parents=True, exist_ok=True)
-    names, splits = [], {}
-    t = np.arange(int(SECONDS * 16000)) / 16000
-    for spk in speakers:
-        for take in takes:
-            name = format_take_name(spk, take)
-            names.append(name)
-            f0 = 120 + 40 * spk + take
-            wave = 0.3 * np.sin(2 * np.pi * f0 * t) * (np.sin(2 * np.pi * 2.0 * t) > 0)
-            sf.write(root / "wave16k" / f"{name}.wav", wave.astype(np.float32), 16000, subtype="PCM_16")
-            T = int(SECONDS * 30)
-            poses = np.cumsum(rng.normal(0, 0.01, (T, 55, 3)), axis=0).astype(np.float32)
-            save_smplx_npz(SMPLXSequence(poses=poses, trans=np.zeros((T, 3))), root / "smplxflame_30" / f"{name}.npz")
-            (root / "sem" / f"{name}.txt").write_text("beat\t1.0\t2.0\t1.0\t0.5\tword\n")
-            splits[name] = "test" if take in (2, 66) else "train"
-    write_split_csv(root / "train_test_split.csv", splits)
-    return names
+from helpers import cli, make_root
 
 
 def test_layout_and_contents(tmp_path):
@@ -89,15 +58,11 @@ def test_other_settings_into_the_same_cache_are_refused(tmp_path):
         prepare(tmp_path / "root", tmp_path / "cache", PrepareConfig(hop_seconds=2.5), progress=False)
 
 
-def _cli(*args):
-    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
-
-
 def test_killed_midway_resumes_to_the_same_result(tmp_path):
     make_root(tmp_path / "root", speakers=(1, 2, 3, 4, 5), takes=(1, 2, 3, 65, 66, 67))
     prepare(tmp_path / "root", tmp_path / "clean", progress=False)
 
-    proc = subprocess.Popen(_cli("prepare", tmp_path / "root", "--out", tmp_path / "cache", "--quiet"),
+    proc = subprocess.Popen(cli("prepare", tmp_path / "root", "--out", tmp_path / "cache", "--quiet"),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     takes = tmp_path / "cache" / "takes"
     deadline = time.monotonic() + 120
@@ -128,7 +93,7 @@ def test_bad_roots_are_one_line_errors(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputFileError, match="smplxflame_30"):
         prepare(tmp_path / "empty", tmp_path / "cache2", progress=False)
-    proc = subprocess.run(_cli("prepare", tmp_path / "empty", "--out", tmp_path / "cache3"),
+    proc = subprocess.run(cli("prepare", tmp_path / "empty", "--out", tmp_path / "cache3"),
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "smplxflame_30" in proc.stderr

@@ -3,9 +3,7 @@
 import json
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
 
@@ -13,12 +11,7 @@ from emogesture.data.beat import write_split_csv
 from emogesture.data.prepare import prepare
 from emogesture.train.engine import checkpoint_step
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_prepare import make_root  # noqa: E402
-
-
-def cli(*args):
-    return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+from helpers import cli, make_root
 
 
 @pytest.fixture(scope="module")

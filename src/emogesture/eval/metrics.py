@@ -14,7 +14,7 @@ import numpy as np
 from scipy import linalg
 from scipy.signal import argrelextrema
 
-from emogesture.motion.skeleton import ARM_JOINTS, LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, WRIST_JOINTS
+from emogesture.motion.skeleton import ARM_JOINTS, UPPER_BODY_JOINTS, WRIST_JOINTS
 
 # Joint groups (SPEC §3, §8) come from the one skeleton table.
 METRIC_CONSTANTS: dict = {
