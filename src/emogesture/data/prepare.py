@@ -19,6 +19,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import time
 from dataclasses import dataclass, field
 from os import PathLike
@@ -37,6 +38,11 @@ from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import MotionFeatureSpec, load_smplx_npz, poses_to_features, write_npz_atomic
 
 FBANK_RATE = 100  # fbank frames per second (10 ms shift)
+
+
+def bar_interval() -> float:
+    """Seconds between progress-bar updates: lively on a terminal, sparse in a log file."""
+    return 0.1 if sys.stderr.isatty() else 15.0
 
 
 @dataclass
@@ -262,7 +268,7 @@ def prepare(
     take_dir = out / "takes"
     take_dir.mkdir(exist_ok=True)
     todo = [t for t in takes if not (take_dir / f"{t}.npz").is_file()]
-    for take in tqdm(todo, desc="prepare takes", unit="take", disable=not progress):
+    for take in tqdm(todo, desc="prepare takes", unit="take", disable=not progress, mininterval=bar_interval()):
         arrays = process_take(root, take, config)
         write_npz_atomic(take_dir / f"{take}.npz", arrays, overwrite=True)
 

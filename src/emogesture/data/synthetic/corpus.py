@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import shutil
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -216,7 +217,8 @@ def build_corpus(out_dir: str | PathLike[str], config: CorpusConfig, *, progress
 
 
 def _run(out: Path, todo: list[TakePlan], workers: int, progress: bool) -> None:
-    bar = tqdm(total=len(todo), unit="take", desc="corpus", disable=not progress or not todo)
+    bar = tqdm(total=len(todo), unit="take", desc="corpus", disable=not progress or not todo,
+               mininterval=0.1 if sys.stderr.isatty() else 15.0)
     try:
         if workers == 1 or len(todo) <= 1:
             for plan in todo:
