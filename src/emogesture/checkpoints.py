@@ -87,6 +87,13 @@ def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
         raise
 
 
+def write_text_atomic(path: str | PathLike[str], text: str) -> Path:
+    """Write a text file (a report, a JSON) through a temporary file and a rename."""
+    path = Path(path)
+    _atomic_write(path, lambda tmp: tmp.write_text(text))
+    return path
+
+
 def model_paths(path: str | PathLike[str], name: str = "model") -> tuple[Path, Path]:
     """``(weights, meta)`` paths for a run folder, a ``.json`` or a ``.safetensors`` path."""
     p = Path(path)

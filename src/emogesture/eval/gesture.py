@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import detect_onsets, load_audio
-from emogesture.checkpoints import LoadedModel, load_model
+from emogesture.checkpoints import LoadedModel, load_model, write_text_atomic
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import SplitWindows, WindowsCache, open_cache
@@ -170,7 +170,5 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         "seconds": round(time.monotonic() - t0, 1),
     }
     for path, text in ((json_path, json.dumps(result, indent=1)), (md_path, gesture_markdown(result))):
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(text)
-        tmp.replace(path)
+        write_text_atomic(path, text)
     return result

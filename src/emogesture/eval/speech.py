@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from emogesture.checkpoints import write_text_atomic
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.quadruples import QuadrupleIndex, WindowLabels
@@ -112,8 +113,8 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     save_confusion_matrix(spk_rep["confusion"], [str(s) for s in encoder.speakers],
                           out_dir / f"{stem}_speaker_confusion.png", title=f"speaker ({split}), SA {result['SA']:.3f}",
                           overwrite=overwrite)
-    _write(outputs[0], json.dumps(result, indent=1, default=_jsonable))
-    _write(outputs[1], speech_markdown(result))
+    write_text_atomic(outputs[0], json.dumps(result, indent=1, default=_jsonable))
+    write_text_atomic(outputs[1], speech_markdown(result))
     return result
 
 
@@ -143,9 +144,3 @@ def _jsonable(x):
     if isinstance(x, np.generic):
         return x.item()
     raise TypeError(type(x))
-
-
-def _write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
