@@ -309,3 +309,15 @@ def test_npz_errors_name_the_file(tmp_path, kind, problem):
     with pytest.raises(InputFileError, match=problem) as info:
         load_smplx_npz(path)
     assert str(info.value).startswith(f"{path}: ") and "\n" not in str(info.value)
+
+
+def test_features_to_matrices_gives_the_same_joints_as_poses():
+    from emogesture.motion import SkeletonBody, features_to_matrices
+
+    body = SkeletonBody()
+    for spec in (MotionFeatureSpec(), MotionFeatureSpec.all_joints()):
+        x = torch.randn(2, 5, spec.dim, generator=torch.Generator().manual_seed(4))
+        poses, trans = features_to_poses(x, spec)
+        rotations, trans2 = features_to_matrices(x, spec)
+        assert rotations.shape == (2, 5, 55, 3, 3)
+        assert torch.allclose(body(poses, trans), body.forward_matrices(rotations, trans2), atol=1e-5)

@@ -7,7 +7,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from emogesture.errors import EmogestureError, InputFileError
+from emogesture.errors import ConfigError, EmogestureError, InputFileError
 from emogesture.models import speech_losses as sl
 from emogesture.models.pretrained import (
     adapt_ast_checkpoint, adapt_deit_to_audio, init_encoder_from_pretrained, load_deit_state_dict,
@@ -57,10 +57,24 @@ def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
     assert torch.allclose(vit.patch_embed(x)[0, 1 * 101 + 2], manual, atol=1e-4)
 
 
+def test_tiny_patches_are_whole_spectrum_slices():
+    cfg = ViTConfig.preset("tiny")
+    assert cfg.kernel == (128, 8) and cfg.strides == (128, 8) and cfg.grid == (1, 128)
+    vit = AudioViT(cfg)
+    x = torch.randn(2, 1024, 128, generator=_gen(9))
+    assert vit.patch_embed.proj.weight.shape == (cfg.width, 1, 128, 8)
+    # token t sees every bin of frames 8t .. 8t + 7
+    image = x.transpose(1, 2)  # [B, 128 (freq), 1024 (time)]
+    manual = (vit.patch_embed.proj.weight[:, 0] * image[1, :, 40:48]).sum((1, 2)) + vit.patch_embed.proj.bias
+    assert torch.allclose(vit.patch_embed(x)[1, 5], manual, atol=1e-4)
+    with pytest.raises(ConfigError, match="smaller than a patch"):
+        ViTConfig(patch=8, stride=8, patch_freq=256)
+
+
 def _vit_flops(c: ViTConfig) -> int:
     """Matmul/conv/attention FLOPs of one window through one ViT, by hand."""
     n, w, h = c.num_prefix + c.num_patches, c.width, int(c.width * c.mlp_ratio)
-    conv = 2 * c.num_patches * c.patch * c.patch * w
+    conv = 2 * c.num_patches * c.kernel[0] * c.kernel[1] * w
     block = 2 * n * (3 * w * w + w * w + 2 * w * h) + 2 * 2 * n * n * w
     return conv + c.depth * block
 
@@ -250,6 +264,59 @@ def test_loss_weights_and_presets():
     assert set(SpeechLossConfig.preset("emotion_only").active()) == set(TERMS) - {"style", "cross_style"}
     assert set(SpeechLossConfig.preset("style_only").active()) == set(TERMS) - {"emotion", "cross_emotion"}
     assert SpeechLossConfig.preset("full").active() == list(TERMS)
+    assert SpeechLossConfig.preset("adversarial").active() == list(TERMS) + ["latent_classes", "adversarial"]
+
+
+def test_latent_classes_read_each_latent_own_factor():
+    torch.manual_seed(3)
+    model = SpeechDisentangler(SpeechModelConfig.preset("tiny", num_speakers=5))
+    fbank = torch.randn(2, 4, 1024, 128, generator=_gen(7)) * 0.5
+    emotion, speaker = torch.tensor([3, 5]), torch.tensor([[0, 0, 4, 4], [1, 1, 2, 2]])
+    out = speech_losses(model, fbank, emotion, speaker, SpeechLossConfig(**{t: 0.0 for t in TERMS}, latent_classes=1.0))
+    assert set(out) == {"latent_classes", "total"}
+    enc = model.encode(fbank.reshape(8, 1024, 128))
+    expected = (F.cross_entropy(model.emotion_from_latent(sl._standardise(enc.emotion)), emotion.repeat_interleave(4))
+                + F.cross_entropy(model.speaker_from_latent(sl._standardise(enc.style)), speaker.reshape(-1)))
+    assert float(out["latent_classes"]) == pytest.approx(float(expected), rel=1e-5)
+    out["total"].backward()
+    assert model.emotion_encoder.latent_head[1].weight.grad.abs().sum() > 0
+    assert model.style_encoder.latent_head[1].weight.grad.abs().sum() > 0
+    assert model.content_encoder.latent_head[1].weight.grad is None
+    standard = sl._standardise(torch.randn(16, 4) * 3 + 2)
+    assert torch.allclose(standard.mean(0), torch.zeros(4), atol=1e-5)
+    assert torch.allclose(standard.std(0), torch.ones(4), atol=1e-3)
+
+
+def test_adversaries_learn_to_read_and_encoders_learn_to_hide():
+    """The adversaries' heads get gradient only from their own cross-entropy (on detached latents); the
+    encoders only from the confusion term, which is smallest when the adversaries' output is uniform."""
+    torch.manual_seed(2)
+    model = SpeechDisentangler(SpeechModelConfig.preset("tiny", num_speakers=5))
+    fbank = torch.randn(2, 4, 1024, 128, generator=_gen(6)) * 0.5
+    emotion, speaker = torch.tensor([3, 5]), torch.tensor([[0, 0, 4, 4], [1, 1, 2, 2]])
+    only = SpeechLossConfig(**{t: 0.0 for t in TERMS}, adversarial=1.0)
+    out = speech_losses(model, fbank, emotion, speaker, only)
+    assert set(out) == {"adversarial", "adversary_ce", "total"}
+    # untrained adversaries guess near chance: CE ≈ log 5 + log 8
+    assert float(out["adversary_ce"]) == pytest.approx(np.log(5) + np.log(8), rel=0.2)
+    model.zero_grad()
+    out["total"].backward()
+    head = model.speaker_adversary.weight.grad
+    enc = model.emotion_encoder.latent_head[1].weight.grad
+    assert head is not None and head.abs().sum() > 0 and enc is not None and enc.abs().sum() > 0
+    assert model.emotion_encoder.classifier.weight.grad is None or model.emotion_encoder.classifier.weight.grad.abs().sum() == 0
+    # the heads' gradient equals that of their cross-entropy alone
+    latent = sl._standardise(model.encode(fbank.reshape(8, 1024, 128)).emotion.detach())
+    model.speaker_adversary.zero_grad()
+    torch.nn.functional.cross_entropy(model.speaker_adversary(latent), speaker.reshape(-1)).backward()
+    assert torch.allclose(head, model.speaker_adversary.weight.grad, atol=1e-6)
+    # the confusion part is minimal (log K) for uniform predictions
+    from emogesture.models.speech_losses import _adversarial_terms
+
+    zero = torch.nn.Linear(256, 8)
+    torch.nn.init.zeros_(zero.weight), torch.nn.init.zeros_(zero.bias)
+    _, confusion = _adversarial_terms([(zero, torch.randn(4, 256), torch.tensor([0, 1, 2, 3]))])
+    assert float(confusion) == pytest.approx(np.log(8), abs=1e-6)
 
 
 def test_gradients_reach_all_three_encoders():

@@ -67,6 +67,13 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     assert f"at step {saved}" in done.stdout
     assert checkpoint_step(last) == saved + 3
     assert json.loads((run / "model.json").read_text())["extra"]["step"] == saved + 3
+    # a further session keeps the earlier session's log instead of letting Lightning replace it
+    first_log = (run / "logs" / "metrics.csv").read_text()
+    more = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 4, "--log-every", 1),
+                          capture_output=True, text=True)
+    assert more.returncode == 0, more.stderr[-2000:]
+    assert (run / "logs" / "metrics.1.csv").read_text() == first_log
+    assert str(saved + 3) in (run / "logs" / "metrics.csv").read_text().split("\n", 1)[1]
 
 
 def test_two_process_ddp_gives_identical_weights(cache, tmp_path):

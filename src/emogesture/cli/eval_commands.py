@@ -24,6 +24,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--extractor", required=True, type=Path, help="run folder of `emogesture train extractor`")
     p.add_argument("--source", action="append", default=[], metavar="NAME=FOLDER",
                    help="a folder of <take>.npz motion files (BEAT2 format) to score; repeatable")
+    p.add_argument("--model", action="append", default=[], metavar="NAME=RUN",
+                   help="a trained gesture model (run folder) to generate and score; repeatable, the first is "
+                   "'ours' and the others its ablations")
+    p.add_argument("--edit-model", metavar="NAME", help="model scored on emotion edits (default: the first)")
+    p.add_argument("--long-audio", type=float, default=65.0, metavar="SECONDS",
+                   help="with --model: length of the long-audio seam check (default 65; 0 skips it)")
     p.add_argument("--split", default="test", help="split to evaluate (default test)")
     p.add_argument("--out", required=True, type=Path, help="output folder for JSON, markdown and PNGs")
     p.add_argument("--no-baselines", action="store_true", help="skip mean pose / mismatched / shifted baselines")
@@ -37,6 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", default="paper", choices=["paper", "tiny"])
     p.add_argument("--speakers", type=int, default=30, help="speaker classes (default 30, BEAT)")
     p.set_defaults(func=run_model_info_speech)
+    p = isub.add_parser("gesture", help="the gesture generator (motion prior + latent denoiser)")
+    p.add_argument("--preset", default="paper", choices=["paper", "tiny"])
+    p.add_argument("--variant", default="joint", choices=["joint", "disjoint", "no_prior", "no_audio"])
+    p.set_defaults(func=run_model_info_gesture)
 
 
 def run_evaluate_speech(args: argparse.Namespace) -> int:
@@ -52,16 +62,37 @@ def run_evaluate_gesture(args: argparse.Namespace) -> int:
     from emogesture.errors import EmogestureError
     from emogesture.eval.gesture import evaluate_gesture, gesture_markdown
 
-    sources = {}
-    for item in args.source:
-        if "=" not in item:
-            raise EmogestureError(f"--source {item!r}: expected NAME=FOLDER")
-        name, folder = item.split("=", 1)
-        sources[name] = Path(folder)
+    sources = _named_paths(args.source, "--source", "NAME=FOLDER")
+    if args.model:
+        from emogesture.eval.gesture_models import evaluate_gesture_models, gesture_models_markdown
+
+        if sources or args.no_baselines:
+            raise EmogestureError("--model cannot be combined with --source or --no-baselines")
+        models = _named_paths(args.model, "--model", "NAME=RUN")
+        if args.edit_model is not None and args.edit_model not in models:
+            raise EmogestureError(f"--edit-model {args.edit_model!r} is not one of the --model names")
+        result = evaluate_gesture_models(args.data, args.extractor, models, args.out, args.split, args.edit_model,
+                                         args.seed, args.long_audio, overwrite=args.overwrite)
+        print(gesture_models_markdown(result))
+        return 0
     result = evaluate_gesture(args.data, args.extractor, sources, args.out, args.split,
                               baselines=not args.no_baselines, seed=args.seed, overwrite=args.overwrite)
     print(gesture_markdown(result))
     return 0
+
+
+def _named_paths(items: list[str], flag: str, shape: str) -> dict[str, Path]:
+    from emogesture.errors import EmogestureError
+
+    out: dict[str, Path] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise EmogestureError(f"{flag} {item!r}: expected {shape}")
+        if name in out:
+            raise EmogestureError(f"{flag}: the name {name!r} is given twice")
+        out[name] = Path(path)
+    return out
 
 
 def run_model_info_speech(args: argparse.Namespace) -> int:
@@ -80,4 +111,29 @@ def run_model_info_speech(args: argparse.Namespace) -> int:
         f = flops.get(name)
         print(f"{name:<18}{n:>16,}{(f'{f / 1e9:.3f}' if f is not None else '-'):>24}")
     print("FLOPs counted by torch.utils.flop_counter (a multiply-add is 2 FLOPs): encode + self-reconstruction.")
+    return 0
+
+
+def run_model_info_gesture(args: argparse.Namespace) -> int:
+    import torch
+
+    from emogesture.models.gesture import GestureModel, GestureModelConfig, gesture_flops
+
+    config = GestureModelConfig.preset(args.preset, args.variant)
+    with torch.device("meta"):
+        model = GestureModel(config)
+    counts = model.count_parameters()
+    flops = gesture_flops(config)
+    print(f"gesture model, preset {args.preset}, variant {args.variant} "
+          f"({config.vae.frames} frames x {config.vae.feature_dim} features, z in R^{config.vae.latent_dim})")
+    print(f"{'component':<12}{'parameters':>16}{'GFLOPs':>12}  per")
+    per = {"prior": "encode + decode of one window", "denoiser": "one denoising step",
+           "audio_ae": "one window"}
+    for name, n in counts.items():
+        f = flops.get(name)
+        print(f"{name:<12}{n:>16,}{(f'{f / 1e9:.3f}' if f is not None else '-'):>12}  {per.get(name, '')}")
+    steps = config.diffusion.num_inference_steps
+    total = flops["decode"] + steps * flops["denoiser"] + flops.get("audio_ae", 0)
+    print(f"generating one 10-s window ({steps} DDIM steps + decoding): {total / 1e9:.2f} GFLOPs")
+    print("FLOPs counted by torch.utils.flop_counter (a multiply-add is 2 FLOPs).")
     return 0

@@ -19,6 +19,7 @@ def _engine_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--accelerator", default="cpu", choices=["cpu", "gpu", "auto"], help="default cpu")
     p.add_argument("--precision", default="32-true", help="32-true (default) or bf16-mixed")
     p.add_argument("--checkpoint-every", type=int, default=200, help="steps between checkpoints (default 200)")
+    p.add_argument("--log-every", type=int, default=20, help="steps between logged losses (default 20)")
     p.add_argument("--seed", type=int, default=0, help="seed of weights, sampling and augmentation")
     p.add_argument("--overwrite", action="store_true", help="start the run folder again from scratch")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -29,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     tsub = train.add_subparsers(dest="model", required=True, metavar="MODEL")
     p = tsub.add_parser("speech", help="the speech disentanglement model (content / emotion / style)")
     p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
-    p.add_argument("--losses", default="full", choices=["full", "emotion_only", "style_only"],
-                   help="loss terms: full, or one of the paper's two ablations")
+    p.add_argument("--losses", default="full", choices=["full", "emotion_only", "style_only", "adversarial"],
+                   help="loss terms: full (the paper), emotion_only / style_only (its ablations), adversarial (full + latent adversaries)")
     _engine_args(p)
     p.set_defaults(func=run_train_speech)
     p = tsub.add_parser("extractor", help="the motion feature extractor M used by the gesture metrics")
@@ -79,7 +80,7 @@ def _run(args: argparse.Namespace, command: str, config, build, what: str, more:
 
     settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=args.accelerator,
                            precision=args.precision, checkpoint_every=args.checkpoint_every,
-                           progress=not args.quiet, seed=args.seed)
+                           log_every=args.log_every, progress=not args.quiet, seed=args.seed)
     blob = {"command": command, "config": to_dict(config), "data": str(args.data.resolve()),
             "seed": args.seed, "precision": args.precision, **(more or {})}
     resume = check_run_dir(args.out, blob, args.overwrite)

@@ -13,6 +13,8 @@ version), which is written last and marks the cache complete.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import csv
 import json
 from dataclasses import dataclass
@@ -79,6 +81,18 @@ class WindowsCache:
             text=np.asarray(text, np.int64),
             start_s=np.asarray(start, np.float64),
         )
+
+
+def concat_splits(cache: WindowsCache, names: Sequence[str]) -> SplitWindows:
+    """Several splits as one (arrays loaded into memory; a single split stays memory-mapped)."""
+    parts = [cache.split(n) for n in names]
+    if len(parts) == 1:
+        return parts[0]
+    return SplitWindows(
+        **{k: np.concatenate([getattr(p, k) for p in parts]) for k in
+           ("fbank", "motion", "sem", "speaker_id", "emotion", "text", "start_s")},
+        takes=[t for p in parts for t in p.takes],
+    )
 
 
 def open_cache(root: str | PathLike[str]) -> WindowsCache:

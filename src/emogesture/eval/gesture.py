@@ -130,9 +130,11 @@ def _fmt(v: float) -> str:
 
 
 def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_dir: Path, split: str = "test",
-                     baselines: bool = True, seed: int = 0, overwrite: bool = False) -> dict:
+                     baselines: bool = True, seed: int = 0, overwrite: bool = False,
+                     evaluator: GestureEvaluator | None = None) -> dict:
     """Score ``sources`` (name -> raw features ``[W, T, D]``, or ``(features, target labels)``, or a
-    folder of npz files) and the built-in baselines; writes JSON, markdown and confusion PNGs."""
+    folder of npz files) and the built-in baselines; writes JSON, markdown and confusion PNGs.
+    ``evaluator``: an already built :class:`GestureEvaluator` of the same cache, split and extractor."""
     from emogesture.eval import sources as src
 
     t0 = time.monotonic()
@@ -142,7 +144,7 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         if p.exists() and not overwrite:
             raise OutputExistsError(p)
     cache = open_cache(cache_dir)
-    ev = GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
+    ev = evaluator or GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
     w = ev.windows
     todo: dict = {"GT": src.ground_truth(w)}
     if baselines:

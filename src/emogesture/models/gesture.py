@@ -107,3 +107,32 @@ class GestureModel(nn.Module):
             out["audio_ae"] = sum(p.numel() for p in self.audio_ae.parameters())
         out["total"] = sum(out.values())
         return out
+
+
+def gesture_flops(config: GestureModelConfig) -> dict[str, int]:
+    """FLOPs (multiply-add = 2) per component on the meta device: ``prior`` encodes and decodes one
+    window (``decode``: decoding only), ``denoiser`` is one denoising step of one sample, ``audio_ae`` one MFCC window."""
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with torch.device("meta"):
+        model = GestureModel(config).eval()
+        motion = torch.zeros(1, config.vae.frames, config.vae.feature_dim)
+        z = torch.zeros(1, config.vae.latent_dim)
+        conds = [torch.zeros(1, config.denoiser.cond_dim) for _ in range(config.denoiser.num_conditions)]
+        t = torch.zeros(1, dtype=torch.long)
+        mfcc = torch.zeros(1, config.mfcc_dim)
+    out = {}
+    with FlopCounterMode(display=False) as counter:
+        model.prior(motion, sample=False)
+    out["prior"] = int(counter.get_total_flops())
+    with FlopCounterMode(display=False) as counter:
+        model.prior.decode(z)
+    out["decode"] = int(counter.get_total_flops())
+    with FlopCounterMode(display=False) as counter:
+        model.denoiser(z, t, conds)
+    out["denoiser"] = int(counter.get_total_flops())
+    if model.audio_ae is not None:
+        with FlopCounterMode(display=False) as counter:
+            model.audio_ae(mfcc)
+        out["audio_ae"] = int(counter.get_total_flops())
+    return out

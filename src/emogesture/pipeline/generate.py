@@ -22,10 +22,9 @@ import torch
 from emogesture.audio import check_speech, load_audio
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
-from emogesture.diffusion.sampling import ddim_sample, make_generators
-from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import MotionFeatureSpec, features_to_poses
+from emogesture.pipeline.conditions import generate_from_conditions
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
 
@@ -87,8 +86,6 @@ class GesturePipeline:
         self.std = np.asarray(extra["motion_std"], np.float32)
         self.spec = from_dict(MotionFeatureSpec, extra["features"])
         self.fps = int(extra.get("fps", 30))
-        self.scheduler = make_ddim_scheduler(gesture.config.diffusion)
-        self.frames = gesture.config.vae.frames
 
     @classmethod
     def from_run(cls, run: str | PathLike[str], speech_run: str | PathLike[str] | None = None,
@@ -129,14 +126,9 @@ class GesturePipeline:
                 s = edit.style_from[np.arange(n) % len(edit.style_from)].astype(np.float32)
         return [c, e, s]
 
-    @torch.no_grad()
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int]) -> np.ndarray:
         """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``."""
-        conds = [torch.from_numpy(np.ascontiguousarray(x)).to(self.device) for x in conditions]
-        z = ddim_sample(self.model.denoiser, self.scheduler, conds, make_generators(seeds),
-                        num_inference_steps=self.loaded.config.diffusion.num_inference_steps)
-        feats = self.model.prior.decode(z, frames=self.frames).cpu().numpy()
-        return feats * self.std + self.mean
+        return generate_from_conditions(self.loaded, conditions, seeds)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
                  hop_seconds: float = 8.0) -> list[SMPLXSequence]:

@@ -155,11 +155,25 @@ def make_trainer(run_dir: Path, settings: RunSettings, export, extra_callbacks: 
     )
 
 
+def keep_previous_log(run_dir: Path) -> Path | None:
+    """Move ``logs/metrics.csv`` of an earlier session of the run to ``logs/metrics.<k>.csv`` (k = 1, 2, ...)
+    before resuming: Lightning's CSV logger would otherwise replace it."""
+    old = run_dir / "logs" / "metrics.csv"
+    if not old.is_file():
+        return None
+    k = 1
+    while (kept := old.with_name(f"metrics.{k}.csv")).exists():
+        k += 1
+    os.replace(old, kept)
+    return kept
+
+
 def fit(trainer: L.Trainer, module: L.LightningModule, datamodule: L.LightningDataModule, run_dir: Path,
         resume: bool) -> None:
     """``trainer.fit``, resuming from ``last.ckpt`` when asked (weights-only loading)."""
     ckpt_path = last_checkpoint(run_dir) if resume else None
     if ckpt_path is not None and trainer.is_global_zero:
         print(f"resuming from {ckpt_path} at step {checkpoint_step(ckpt_path)}", flush=True)
+        keep_previous_log(run_dir)
     torch.set_float32_matmul_precision("high")
     trainer.fit(module, datamodule=datamodule, ckpt_path=str(ckpt_path) if ckpt_path else None, weights_only=True)

@@ -18,7 +18,6 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.audio import mfcc_from_log_mel
 from emogesture.checkpoints import save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
@@ -26,7 +25,8 @@ from emogesture.data.cache import open_cache
 from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
 from emogesture.models.gesture import GestureModel, GestureModelConfig
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
+from emogesture.pipeline.conditions import window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
@@ -81,24 +81,6 @@ class GestureWindows(Dataset):
                 "conditions": [torch.from_numpy(np.asarray(c[i], np.float32)) for c in self.conditions]}
 
 
-def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
-    """Cached normalised fbank windows ``[W, 1024, n_mels]`` -> flattened pooled MFCCs ``[W, 13 * 128]``."""
-    out = []
-    for i in range(0, len(fbank_windows), batch):
-        x = torch.from_numpy(np.asarray(fbank_windows[i : i + batch], np.float32)) * (2 * fbank_std) + fbank_mean
-        out.append(mfcc_from_log_mel(x, 13, time_pool=8).flatten(1).numpy())
-    return np.concatenate(out)
-
-
-def window_conditions(variant: str, cache, split: str, speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
-    """Condition arrays of every window of a split: ``[c, e, s]`` latents, or ``[mfcc]`` for no_audio."""
-    if variant == "no_audio":
-        w = cache.split(split)
-        return [mfcc_windows(w.fbank, cache.stats["fbank_mean"], cache.stats["fbank_std"])]
-    enc = speech.encode_split(cache, split)
-    return [enc.content, enc.emotion, enc.style]
-
-
 class GestureModule(L.LightningModule):
     def __init__(self, config: dict, motion_mean: list, motion_std: list, features: dict, seed: int = 0) -> None:
         super().__init__()
@@ -118,8 +100,8 @@ class GestureModule(L.LightningModule):
 
     def joints(self, normalised: torch.Tensor) -> torch.Tensor:
         """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""
-        poses, trans = features_to_poses(normalised * self.std + self.mean, self.spec)
-        return self.body(poses, trans)
+        rotations, trans = features_to_matrices(normalised * self.std + self.mean, self.spec)
+        return self.body.forward_matrices(rotations, trans)
 
     def _generator(self) -> torch.Generator:
         seed = np.random.SeedSequence([self.seed, self.global_step, self.global_rank]).generate_state(1)[0]
@@ -143,11 +125,18 @@ class GestureModule(L.LightningModule):
         phase_denoiser = variant != "disjoint" or self.global_step >= cfg.disjoint_prior_steps
         losses: dict[str, torch.Tensor] = {}
         prior = self.model.prior
+        gt: list[torch.Tensor] = []
+
+        def joints_gt() -> torch.Tensor:  # ground-truth joint positions, computed once per step
+            if not gt:
+                with torch.no_grad():
+                    gt.append(self.joints(m))
+            return gt[0]
+
         if phase_prior:
             rec, z, mu, logvar = prior(m, generator=g)
             losses["rec"] = F.smooth_l1_loss(rec, m)
-            j_gt = self.joints(m)
-            losses["vrec"] = F.smooth_l1_loss(self.joints(rec), j_gt)
+            losses["vrec"] = F.smooth_l1_loss(self.joints(rec), joints_gt())
             if variant != "no_prior":
                 losses["kl"] = prior.kl_loss(mu, logvar)
         else:
@@ -164,7 +153,7 @@ class GestureModule(L.LightningModule):
                                       num_inference_steps=cfg.align_ddim_steps)
                 m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1])
                 losses["align"] = F.smooth_l1_loss(m_tilde, m)
-                losses["valign"] = F.smooth_l1_loss(self.joints(m_tilde), self.joints(m))
+                losses["valign"] = F.smooth_l1_loss(self.joints(m_tilde), joints_gt())
         if audio_rec is not None:
             losses["audio_rec"] = audio_rec
         total = sum(getattr(w, k) * v for k, v in losses.items())

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Issue 5 experiment: the tiny gesture model (joint training, the paper's model) and its three ablations
+# (disjoint training, no motion prior, no audio disentanglement) on the default synthetic corpus, on this
+# CPU, scored with the evaluation suite on held-out texts (paper Table 1 layout plus the prior's
+# reconstruction error, emotion edits and a 65-s long-audio seam check).
+# Needs the speech model of experiments/speech_disentanglement.sh and the extractor of
+# experiments/gesture_evaluation.sh (each is trained here when missing; both resume).
+# Two trainings run side by side, one CPU thread each: (joint, disjoint), then (no_prior, no_audio).
+# Writes experiments/reports/gesture_model/ (gesture_models_test.{json,md}, Table-1 report, PNGs, times).
+# Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES]   (defaults: 600 adversarial)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+STEPS=${1:-600}
+SPEECH_LOSSES=${2:-adversarial}
+EG=.venv/bin/emogesture
+WORK=outputs/experiments
+CACHE=outputs/demo/cache
+REPORT=experiments/reports/gesture_model
+SPEECH="$WORK/speech_$SPEECH_LOSSES"
+$EG corpus --out outputs/demo/corpus --resume --quiet
+$EG prepare outputs/demo/corpus --out "$CACHE" --quiet
+[ -f "$SPEECH/model.json" ] || bash experiments/speech_disentanglement.sh 1400 "$SPEECH_LOSSES"
+[ -f "$WORK/extractor/model.json" ] || $EG train extractor --data "$CACHE" --out "$WORK/extractor" --steps 600 \
+    --checkpoint-every 100 --quiet
+mkdir -p "$REPORT"
+
+train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, writes its wall time
+    local variant=$1 start
+    start=$(date +%s)
+    OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
+        --out "$WORK/gesture_$variant" --steps "$STEPS" --checkpoint-every 200 --quiet
+    echo "$variant: $(( $(date +%s) - start )) s for $STEPS steps (1 thread, beside another training)" \
+        > "$WORK/gesture_$variant.time"
+}
+train joint & train disjoint & wait
+train no_prior & train no_audio & wait
+cat "$WORK"/gesture_{joint,disjoint,no_prior,no_audio}.time | tee "$REPORT/training_time.txt"
+
+$EG evaluate gesture --data "$CACHE" --extractor "$WORK/extractor" --split test --out "$REPORT" --overwrite \
+    --model "ours=$WORK/gesture_joint" --model "disjoint=$WORK/gesture_disjoint" \
+    --model "no prior=$WORK/gesture_no_prior" --model "no audio model=$WORK/gesture_no_audio"

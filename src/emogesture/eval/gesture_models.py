@@ -1,0 +1,226 @@
+"""Scoring trained gesture models: paper Table 1 with the ablations, plus the checks of a trained model.
+
+Each model generates motion for every window of the evaluated split from that window's own audio (its
+cached speech latents, or MFCCs for the ``no_audio`` ablation), with one seeded noise draw per window.
+The edit model also generates every window with its emotion replaced by another label's mean latent
+(a seeded, always different target), scored by GA against the target. On top of Table 1 this writes:
+
+- **prior reconstruction**: ground truth through each model's motion prior (encoder mean, decoder),
+  as the mean upper-body joint position error next to the error of predicting the mean pose;
+- **long audio**: the edit model animates a long recording made of the split's takes back to back;
+  the frame count must be ``round(seconds × 30)`` and the largest frame-to-frame joint jump inside the
+  cross-faded overlaps of neighbouring windows is compared with the 99th percentile inside windows;
+- **checks**: every threshold of the CPU experiment, computed from the numbers above.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from emogesture.audio import load_audio, window_starts
+from emogesture.checkpoints import load_model, write_text_atomic
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import WindowsCache, open_cache
+from emogesture.errors import EmogestureError, OutputExistsError
+from emogesture.eval.gesture import GestureEvaluator, evaluate_gesture, gesture_markdown
+from emogesture.eval.metrics import UPPER_BODY_JOINTS
+from emogesture.eval import sources as src
+from emogesture.motion import SkeletonBody
+from emogesture.pipeline.conditions import (
+    emotion_label_edit,
+    generate_from_conditions,
+    reconstruct_motion,
+    window_conditions,
+    window_seeds,
+)
+from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline
+from emogesture.pipeline.speech import SpeechLatentEncoder
+
+FPS = 30
+
+
+def edit_targets(emotion: np.ndarray, seed: int = 0, available: list[int] | None = None) -> np.ndarray:
+    """A target emotion per window, uniform over the ``available`` classes (default: all eight) other
+    than its own (seeded)."""
+    classes = np.asarray(sorted(range(len(EMOTIONS)) if available is None else available))
+    rng = np.random.default_rng([seed, 11])
+    out = np.empty(len(emotion), np.int64)
+    for i, e in enumerate(np.asarray(emotion).tolist()):
+        choices = classes[classes != e]
+        if not len(choices):
+            raise EmogestureError("no other emotion to edit to")
+        out[i] = choices[rng.integers(len(choices))]
+    return out
+
+
+def mean_joint_error(pred_joints: np.ndarray, gt_joints: np.ndarray) -> float:
+    """Mean L2 distance (m) over windows, frames and the upper-body joints: ``[W, T, 55, 3]`` twice."""
+    j = list(UPPER_BODY_JOINTS)
+    return float(np.linalg.norm(pred_joints[:, :, j] - gt_joints[:, :, j], axis=-1).mean())
+
+
+def long_audio(cache: WindowsCache, split: str, seconds: float) -> tuple[np.ndarray, list[str]]:
+    """The split's takes' audio back to back, cut to ``seconds``: a 16 kHz waveform and the takes used."""
+    root = Path(cache.manifest["root"])
+    parts, used, total = [], [], 0
+    for take in dict.fromkeys(cache.split(split).takes):
+        wave, sr = load_audio(root / "wave16k" / f"{take}.wav")
+        parts.append(wave)
+        used.append(take)
+        total += len(wave)
+        if total >= seconds * sr:
+            return np.concatenate(parts)[: int(round(seconds * sr))], used
+    raise EmogestureError(f"{cache.root}: the {split} split holds less than {seconds} s of audio")
+
+
+def seam_jumps(joints: np.ndarray, starts_s: list[float], fps: int = FPS) -> dict:
+    """Frame-to-frame jumps of a stitched sequence: seams vs inside windows.
+
+    ``joints [T, 55, 3]``; a jump is the largest joint displacement between frames ``k`` and ``k+1``.
+    Seam jumps are those that touch a cross-faded overlap of two neighbouring windows (from the frame
+    before it to its last frame); every other jump is inside a window.
+    """
+    jump = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1)  # [T-1]
+    window = int(round(WINDOW_SECONDS * fps))
+    starts = [int(round(s * fps)) for s in starts_s]
+    seam = np.zeros(len(jump), bool)
+    for prev, cur in zip(starts[:-1], starts[1:]):
+        lo, hi = max(cur - 1, 0), min(prev + window, len(jump))
+        seam[lo:hi] = True
+    if not seam.any() or seam.all():
+        raise EmogestureError("the audio is too short for window seams (needs more than one window)")
+    return {"max_seam_jump_m": float(jump[seam].max()), "p99_inside_jump_m": float(np.percentile(jump[~seam], 99)),
+            "seam_jumps": int(seam.sum()), "inside_jumps": int((~seam).sum()), "windows": len(starts)}
+
+
+def long_audio_check(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = 8.0) -> dict:
+    """Generate for a long waveform; frame count and seam jumps (see :func:`seam_jumps`)."""
+    seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds)[0]
+    with torch.no_grad():
+        joints = SkeletonBody()(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+    duration = len(wave) / 16000
+    starts = window_starts(duration, WINDOW_SECONDS, hop_seconds).tolist()
+    return {"seconds": duration, "frames": seq.num_frames, "expected_frames": int(round(duration * FPS)),
+            "hop_seconds": hop_seconds, **seam_jumps(joints, starts)}
+
+
+def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str | None, recon: dict,
+                   long: dict | None) -> dict:
+    """The CPU experiment's thresholds as ``{name: {value, threshold, pass}}`` (pure function)."""
+    gt, ours = rows["GT"], rows[model]
+    checks = {}
+
+    def check(name: str, value: float, threshold: float, higher_is_better: bool = True) -> None:
+        ok = value >= threshold if higher_is_better else value <= threshold
+        checks[name] = {"value": float(value), "threshold": float(threshold), "pass": bool(ok)}
+
+    if model in recon:
+        check("prior error / mean-pose error <= 0.25", recon[model]["joint_error_m"] / recon["mean pose"]["joint_error_m"],
+              0.25, higher_is_better=False)
+    check("GA / GA(GT) >= 0.7", ours["GA"] / gt["GA"], 0.7)
+    if edit_row is not None:
+        check("GA(emotion edit) / GA(GT) >= 0.5", rows[edit_row]["GA"] / gt["GA"], 0.5)
+    if np.isfinite(gt["BA"]):
+        check("BA / BA(GT) >= 0.9", ours["BA"] / gt["BA"], 0.9)
+    for name in ablations:
+        check(f"FGD / FGD({name}) < 1", ours["FGD"] / rows[name]["FGD"], 1.0, higher_is_better=False)
+        checks[f"FGD / FGD({name}) < 1"]["pass"] = bool(ours["FGD"] < rows[name]["FGD"])
+    if "GT, mismatched audio" in rows:
+        checks["FGD / FGD(GT, mismatched audio) (reported)"] = {
+            "value": ours["FGD"] / max(rows["GT, mismatched audio"]["FGD"], 1e-12), "threshold": None, "pass": None}
+    check("|Div / Div(GT) - 1| <= 0.2", abs(ours["Div"] / gt["Div"] - 1.0), 0.2, higher_is_better=False)
+    if long is not None:
+        check("long audio: |frames - round(30 s)| <= 1", abs(long["frames"] - long["expected_frames"]), 1,
+              higher_is_better=False)
+        check("long audio: max seam jump / p99 inside jump <= 1",
+              long["max_seam_jump_m"] / long["p99_inside_jump_m"], 1.0, higher_is_better=False)
+    return checks
+
+
+def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[str, Path], out_dir: Path,
+                            split: str = "test", edit_model: str | None = None, seed: int = 0,
+                            long_audio_seconds: float = 65.0, overwrite: bool = False) -> dict:
+    """Generate with every model (name -> run folder; the first is "ours"), score them with the
+    baselines, and write ``gesture_models_<split>.{json,md}`` beside the Table-1 report."""
+    out_dir = Path(out_dir)
+    json_path, md_path = out_dir / f"gesture_models_{split}.json", out_dir / f"gesture_models_{split}.md"
+    for p in (json_path, md_path):
+        if p.exists() and not overwrite:
+            raise OutputExistsError(p)
+    if not models:
+        raise EmogestureError("no gesture model to evaluate")
+    cache = open_cache(cache_dir)
+    windows = cache.split(split)
+    main = next(iter(models))
+    edit_model = edit_model or main
+    sources: dict = {}
+    loaded = {}
+    for name, run in models.items():
+        gesture = load_model(run, "gesture")
+        loaded[name] = gesture
+        variant = gesture.extra.get("variant", gesture.config.variant)
+        speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(gesture.extra["speech_model"])
+        conds = window_conditions(variant, cache, split, speech)
+        seeds = window_seeds(seed, len(windows))
+        sources[name] = generate_from_conditions(gesture, conds, seeds)
+        if name == edit_model:
+            known = [EMOTIONS.index(k) for k in gesture.extra.get("emotion_latent_means", {})]
+            targets = edit_targets(windows.emotion, seed, known)
+            edited = generate_from_conditions(gesture, emotion_label_edit(gesture, conds, targets), seeds)
+            sources[f"{name}, emotion edit"] = (edited, targets)
+    ev = GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
+    table = evaluate_gesture(cache_dir, extractor_run, sources, out_dir, split, seed=seed, overwrite=overwrite,
+                             evaluator=ev)
+    recon = {"mean pose": {"joint_error_m": mean_joint_error(ev.embed(src.mean_pose(windows, cache)).joints,
+                                                             ev.gt.joints)}}
+    for name, gesture in loaded.items():
+        if gesture.config.variant != "no_prior":
+            rec = reconstruct_motion(gesture, np.asarray(windows.motion, np.float32))
+            recon[name] = {"joint_error_m": mean_joint_error(ev.embed(rec).joints, ev.gt.joints)}
+    long = None
+    if long_audio_seconds > 0:
+        wave, takes = long_audio(cache, split, long_audio_seconds)
+        pipe = GesturePipeline.from_run(models[edit_model])
+        long = {**long_audio_check(pipe, wave, seed), "takes": takes}
+    ablations = [n for n in models if n != main]
+    edit_row = f"{edit_model}, emotion edit"
+    result = {
+        "split": split, "models": {k: str(v) for k, v in models.items()}, "ours": main, "edit_model": edit_model,
+        "steps": {k: g.extra.get("step") for k, g in loaded.items()},
+        "variants": {k: g.config.variant for k, g in loaded.items()},
+        "table": table, "prior_reconstruction": recon, "long_audio": long,
+        "checks": gesture_checks(table["rows"], main, ablations, edit_row, recon, long),
+    }
+    write_text_atomic(json_path, json.dumps(result, indent=1))
+    write_text_atomic(md_path, gesture_models_markdown(result))
+    return result
+
+
+def gesture_models_markdown(r: dict) -> str:
+    lines = [gesture_markdown(r["table"]).rstrip(), "",
+             "Models: " + ", ".join(f"{k} = {r['variants'][k]} (step {r['steps'][k]})" for k in r["models"]),
+             f"Emotion edit: every window of `{r['edit_model']}` re-generated with another emotion's mean latent "
+             "(seeded target, never its own); its GA is against the target.", "",
+             "## Motion prior reconstruction (upper-body joint error, m)", "", "| source | error | / mean pose |",
+             "|---|---|---|"]
+    base = r["prior_reconstruction"]["mean pose"]["joint_error_m"]
+    for name, v in r["prior_reconstruction"].items():
+        lines.append(f"| {name} | {v['joint_error_m']:.4f} | {v['joint_error_m'] / base:.3f} |")
+    if r["long_audio"]:
+        la = r["long_audio"]
+        lines += ["", "## Long audio", "",
+                  f"{la['seconds']:.1f} s of the split's takes back to back -> {la['frames']} frames "
+                  f"(expected {la['expected_frames']}); {la['windows']} windows every {la['hop_seconds']} s. "
+                  f"Largest frame-to-frame joint jump at the seams {la['max_seam_jump_m'] * 1000:.1f} mm "
+                  f"({la['seam_jumps']} jumps) vs the 99th percentile inside windows "
+                  f"{la['p99_inside_jump_m'] * 1000:.1f} mm ({la['inside_jumps']} jumps)."]
+    lines += ["", "## Checks", "", "| check | value | threshold | pass |", "|---|---|---|---|"]
+    for name, c in r["checks"].items():
+        thr = "-" if c["threshold"] is None else f"{c['threshold']:g}"
+        ok = "-" if c["pass"] is None else ("yes" if c["pass"] else "**no**")
+        lines.append(f"| {name} | {c['value']:.3f} | {thr} | {ok} |")
+    return "\n".join(lines) + "\n"

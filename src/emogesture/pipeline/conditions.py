@@ -1,0 +1,108 @@
+"""Condition latents and motion of whole cache splits, for training and evaluating gesture models.
+
+A gesture model is conditioned on ``(c, e, s)`` from the frozen speech model, or, in the ``no_audio``
+ablation, on one latent ``m`` from its own MFCC autoencoder. These helpers compute the conditions of
+every window of a prepared split, generate motion for them (optionally with an emotion edit by label),
+and reconstruct the ground truth through the motion prior. They serve the trainer (conditions) and
+the evaluation (generation, reconstruction) alike.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from emogesture.audio import mfcc_from_log_mel
+from emogesture.checkpoints import LoadedModel
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.cache import WindowsCache
+from emogesture.diffusion.sampling import ddim_sample, make_generators
+from emogesture.diffusion.schedulers import make_ddim_scheduler
+from emogesture.errors import EmogestureError
+from emogesture.pipeline.speech import SpeechLatentEncoder
+
+
+def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
+    """Cached normalised fbank windows ``[W, 1024, n_mels]`` -> flattened pooled MFCCs ``[W, 13 * 128]``."""
+    out = []
+    for i in range(0, len(fbank_windows), batch):
+        x = torch.from_numpy(np.asarray(fbank_windows[i : i + batch], np.float32)) * (2 * fbank_std) + fbank_mean
+        out.append(mfcc_from_log_mel(x, 13, time_pool=8).flatten(1).numpy())
+    return np.concatenate(out)
+
+
+def window_conditions(variant: str, cache: WindowsCache, split: str,
+                      speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
+    """Raw condition arrays of every window of a split: ``[c, e, s]`` latents ``[W, 256]`` each, or
+    ``[mfcc [W, 13 * 128]]`` for the ``no_audio`` variant (its autoencoder runs inside the model)."""
+    if variant == "no_audio":
+        w = cache.split(split)
+        return [mfcc_windows(w.fbank, cache.stats["fbank_mean"], cache.stats["fbank_std"])]
+    if speech is None:
+        raise EmogestureError(f"variant {variant} needs a speech model for its conditions")
+    enc = speech.encode_split(cache, split)
+    return [enc.content, enc.emotion, enc.style]
+
+
+def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
+    """Replace each window's emotion latent by the stored mean latent of its target label ``labels [W]``."""
+    means = gesture.extra.get("emotion_latent_means")
+    if not means or len(conditions) != 3:
+        raise EmogestureError(f"{gesture.path}: this model has no emotion latents to edit")
+    missing = sorted({EMOTIONS[k] for k in labels.tolist()} - set(means))
+    if missing:
+        raise EmogestureError(f"{gesture.path}: no mean emotion latent for {', '.join(missing)}")
+    table = {EMOTIONS.index(k): np.asarray(v, np.float32) for k, v in means.items()}
+    emotion = np.stack([table[int(k)] for k in labels])
+    return [conditions[0], emotion, conditions[2]]
+
+
+def window_seeds(seed: int, count: int) -> list[int]:
+    """One noise seed per window, derived from ``seed`` (the same for every model and edit)."""
+    return [int(np.random.SeedSequence([seed, 7, i]).generate_state(1)[0]) for i in range(count)]
+
+
+@torch.no_grad()
+def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
+                             batch_size: int = 64, num_inference_steps: int | None = None) -> np.ndarray:
+    """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
+
+    Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
+    (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
+    the model's configuration.
+    """
+    model = gesture.model.eval()
+    device = next(model.parameters()).device
+    cfg = gesture.config
+    scheduler = make_ddim_scheduler(cfg.diffusion)
+    steps = num_inference_steps or cfg.diffusion.num_inference_steps
+    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
+    std = np.asarray(gesture.extra["motion_std"], np.float32)
+    if any(len(c) != len(seeds) for c in conditions):
+        raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
+    out = []
+    for i in range(0, len(seeds), batch_size):
+        conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device)
+                 for c in conditions]
+        if model.audio_ae is not None:
+            conds = [model.audio_ae(conds[0])[0]]
+        z = ddim_sample(model.denoiser, scheduler, conds, make_generators(seeds[i : i + batch_size]),
+                        num_inference_steps=steps)
+        out.append(model.prior.decode(z, frames=cfg.vae.frames).cpu().numpy())
+    return np.concatenate(out) * std + mean
+
+
+@torch.no_grad()
+def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> np.ndarray:
+    """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
+    (encoder mean, then decoder), raw features ``[W, T, D]``."""
+    model = gesture.model.eval()
+    device = next(model.parameters()).device
+    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
+    std = np.asarray(gesture.extra["motion_std"], np.float32)
+    out = []
+    for i in range(0, len(motion), batch_size):
+        x = torch.from_numpy((np.asarray(motion[i : i + batch_size], np.float32) - mean) / std).to(device)
+        z, _, _ = model.prior.encode(x, sample=False)
+        out.append(model.prior.decode(z, frames=x.shape[1]).cpu().numpy())
+    return np.concatenate(out) * std + mean

@@ -1,0 +1,152 @@
+"""Gesture-model training and model evaluation through the command line, on a small fixture.
+
+The short version of experiments/gesture_model.sh: every variant trains a few steps, then
+``evaluate gesture --model`` generates with all of them and writes the Table-1 report and the checks.
+Also unit tests of the pieces of that report (seam jumps, edit targets, checks).
+"""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from emogesture.checkpoints import load_model, save_model
+from emogesture.data.beat import EMOTIONS, write_split_csv
+from emogesture.data.cache import open_cache
+from emogesture.data.prepare import prepare
+from emogesture.eval.gesture_models import edit_targets, gesture_checks, seam_jumps
+from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+from emogesture.train.speech import speech_model_extra
+
+from helpers import cli, make_root
+
+VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
+SMALL = ("--set", "batch_size=4", "--set", "align_ddim_steps=2", "--set", "align_every=1",
+         "--set", "disjoint_prior_steps=2", "--set", "model.diffusion.num_inference_steps=3")
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    d = tmp_path_factory.mktemp("gesture")
+    names = make_root(d / "root", speakers=(1, 2), takes=(1, 2, 3, 65, 66, 67))
+    write_split_csv(d / "root" / "train_test_split.csv",
+                    {n: "test" if n.split("_")[3] in ("3", "67") else "train" for n in names})
+    prepare(d / "root", d / "cache", progress=False)
+    cache = open_cache(d / "cache")
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    save_model(d / "speech", "speech", SpeechDisentangler(cfg), cfg, speech_model_extra(cache, [1, 2], 0))
+    out = subprocess.run(cli("train", "extractor", "--data", d / "cache", "--out", d / "ext", "--steps", 5, "--quiet"),
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    for variant in VARIANTS:
+        out = subprocess.run(cli("train", "gesture", "--variant", variant, "--data", d / "cache", "--speech", d / "speech",
+                                 "--out", d / variant, "--steps", 4, "--log-every", 1, "--quiet", *SMALL), capture_output=True, text=True)
+        assert out.returncode == 0, (variant, out.stderr[-2000:])
+    return d
+
+
+def test_every_variant_trains_and_logs_its_terms(trained):
+    expected = {"joint": {"rec", "vrec", "kl", "ld", "align", "valign"},
+                "disjoint": {"rec", "vrec", "kl", "ld"},
+                "no_prior": {"rec", "vrec", "ld", "align", "valign"},
+                "no_audio": {"rec", "vrec", "kl", "ld", "align", "valign", "audio_rec"}}
+    for variant in VARIANTS:
+        header = (trained / variant / "logs" / "metrics.csv").read_text().splitlines()[0].split(",")
+        logged = {h.removeprefix("train/") for h in header if h.startswith("train/")}
+        assert logged == expected[variant], variant
+        model = load_model(trained / variant, "gesture")
+        assert model.config.variant == variant and model.extra["step"] == 4
+    means = load_model(trained / "joint", "gesture").extra["emotion_latent_means"]
+    assert set(means) == {"neutral", "happiness"} and len(means["neutral"]) == 256
+
+
+def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
+    d = trained
+    args = ["evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext", "--out", tmp_path / "r",
+            "--long-audio", 30]
+    for name, variant in (("ours", "joint"), ("disjoint", "disjoint"), ("no prior", "no_prior"),
+                          ("no audio model", "no_audio")):
+        args += ["--model", f"{name}={d / variant}"]
+    out = subprocess.run(cli(*args), capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
+    r = json.loads((tmp_path / "r" / "gesture_models_test.json").read_text())
+    rows = r["table"]["rows"]
+    assert {"GT", "mean pose", "ours", "ours, emotion edit", "disjoint", "no prior", "no audio model"} <= set(rows)
+    assert rows["ours"]["FGD"] > 0 and np.isfinite(rows["ours"]["GA"])
+    assert r["long_audio"]["frames"] == r["long_audio"]["expected_frames"] == 900
+    assert set(r["prior_reconstruction"]) == {"mean pose", "ours", "disjoint", "no audio model"}
+    assert "FGD / FGD(no prior) < 1" in r["checks"] and "GA / GA(GT) >= 0.7" in r["checks"]
+    md = (tmp_path / "r" / "gesture_models_test.md").read_text()
+    assert "## Checks" in md and "| ours, emotion edit |" in md
+    # outputs are never replaced silently
+    again = subprocess.run(cli(*args), capture_output=True, text=True)
+    assert again.returncode != 0 and "--overwrite" in again.stderr and len(again.stderr.strip().splitlines()) == 1
+
+
+def test_generation_is_seeded_and_batch_independent(trained):
+    from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
+
+    model = load_model(trained / "joint", "gesture")
+    rng = np.random.default_rng(0)
+    conds = [rng.normal(size=(5, 256)).astype(np.float32) for _ in range(3)]
+    a = generate_from_conditions(model, conds, window_seeds(1, 5), batch_size=5)
+    b = generate_from_conditions(model, conds, window_seeds(1, 5), batch_size=2)
+    c = generate_from_conditions(model, conds, window_seeds(2, 5), batch_size=5)
+    assert np.allclose(a, b, atol=1e-5) and not np.allclose(a, c)
+
+
+def test_edit_targets_are_seeded_and_never_the_own_emotion():
+    emotion = np.arange(400) % len(EMOTIONS)
+    t = edit_targets(emotion, seed=3)
+    assert np.all(t != emotion) and set(t.tolist()) == set(range(len(EMOTIONS)))
+    assert np.array_equal(t, edit_targets(emotion, seed=3)) and not np.array_equal(t, edit_targets(emotion, seed=4))
+    two = edit_targets(np.array([0, 1, 1, 0]), available=[0, 1])
+    assert two.tolist() == [1, 0, 0, 1]
+
+
+def test_seam_jumps_find_a_jump_at_a_seam():
+    fps, t = 30, np.arange(600) / 30
+    joints = np.zeros((600, 55, 3))
+    joints[..., 0] = 0.05 * np.sin(2 * np.pi * 0.5 * t)[:, None]  # smooth motion, at most ~5 mm per frame
+    starts = [0.0, 8.0, 10.0]  # windows 0-10 s, 8-18 s, 10-20 s: overlaps at frames 240-299 and 300-539
+    smooth = seam_jumps(joints, starts, fps)
+    assert smooth["max_seam_jump_m"] <= smooth["p99_inside_jump_m"] * 1.01
+    broken = joints.copy()
+    broken[270:, :, 0] += 0.1  # a 10-cm step inside the first overlap
+    r = seam_jumps(broken, starts, fps)
+    assert r["max_seam_jump_m"] == pytest.approx(abs(0.1 + joints[270, 0, 0] - joints[269, 0, 0]), abs=1e-9)
+    assert r["max_seam_jump_m"] > r["p99_inside_jump_m"]
+    with pytest.raises(Exception, match="too short"):
+        seam_jumps(joints, [0.0], fps)
+
+
+def test_checks_follow_the_thresholds():
+    row = dict(SRGR=1.0, BA=0.9, FGD=5.0, Div=10.0, GA=0.8, Jerk=1.0)
+    rows = {"GT": dict(row, FGD=0.0, GA=1.0, BA=1.0), "ours": row, "ours, emotion edit": dict(row, GA=0.4),
+            "no prior": dict(row, FGD=6.0), "disjoint": dict(row, FGD=4.0), "GT, mismatched audio": dict(row, FGD=2.0)}
+    recon = {"mean pose": {"joint_error_m": 0.1}, "ours": {"joint_error_m": 0.02}}
+    long = {"frames": 1950, "expected_frames": 1950, "max_seam_jump_m": 0.01, "p99_inside_jump_m": 0.02}
+    c = gesture_checks(rows, "ours", ["no prior", "disjoint"], "ours, emotion edit", recon, long)
+    assert c["prior error / mean-pose error <= 0.25"]["pass"] and c["GA / GA(GT) >= 0.7"]["pass"]
+    assert not c["GA(emotion edit) / GA(GT) >= 0.5"]["pass"]
+    assert c["FGD / FGD(no prior) < 1"]["pass"] and not c["FGD / FGD(disjoint) < 1"]["pass"]
+    assert c["BA / BA(GT) >= 0.9"]["pass"] and c["|Div / Div(GT) - 1| <= 0.2"]["pass"]
+    assert c["FGD / FGD(GT, mismatched audio) (reported)"]["value"] == pytest.approx(2.5)
+    assert c["long audio: max seam jump / p99 inside jump <= 1"]["pass"]
+
+
+def test_model_info_gesture_prints_the_paper_counts(capsys):
+    import torch
+
+    from emogesture.cli.main import main
+    from emogesture.models.gesture import GestureModel, GestureModelConfig
+
+    assert main(["model-info", "gesture", "--preset", "paper"]) == 0
+    text = capsys.readouterr().out
+    with torch.device("meta"):
+        counts = GestureModel(GestureModelConfig.preset("paper")).count_parameters()
+    for name in ("prior", "denoiser", "total"):
+        assert f"{counts[name]:,}" in text
+    assert 17e6 < counts["prior"] < 19e6 and 80e6 < counts["denoiser"] < 90e6
+    assert "50 DDIM steps" in text
