@@ -5,6 +5,7 @@ import signal
 import subprocess
 import time
 
+import numpy as np
 import pytest
 
 from emogesture.data.beat import write_split_csv
@@ -83,3 +84,18 @@ def test_two_process_ddp_gives_identical_weights(cache, tmp_path):
     assert out.returncode == 0, out.stderr[-3000:]
     digests = [(run / "rank_digests" / f"rank{r}.txt").read_text().split() for r in (0, 1)]
     assert digests[0] == digests[1] and digests[0][0] == "3"
+
+
+def test_train_splits_concatenate_and_never_take_the_test_split(cache):
+    from emogesture.data.cache import concat_splits, open_cache
+    from emogesture.errors import ConfigError
+    from emogesture.train.speech import SpeechDataModule
+
+    c = open_cache(cache)
+    train, test = c.split("train"), c.split("test")
+    both = concat_splits(c, ["train", "test"])
+    assert len(both) == len(train) + len(test) and both.takes == train.takes + test.takes
+    assert np.array_equal(both.fbank[len(train):], test.fbank) and np.array_equal(both.text[: len(train)], train.text)
+    assert concat_splits(c, ["train"]).fbank is not None and len(concat_splits(c, ["train"])) == len(train)
+    with pytest.raises(ConfigError, match="test split"):
+        SpeechDataModule(cache, 2, 8, 0, splits=("train", "test"))
