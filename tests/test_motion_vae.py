@@ -140,7 +140,8 @@ def test_gradients_reach_every_parameter():
     x = torch.randn(3, 20, 282, generator=_gen(9))
     recon, z, mu, logvar = vae(x, generator=_gen(10))
     (F.smooth_l1_loss(recon, x) + 1e-4 * vae.kl_loss(mu, logvar)).backward()
-    missing = {n for n, p in vae.named_parameters() if p.grad is None or not p.grad.abs().sum() > 0}
+    # (fused attention kernels leave rounding-level gradients on inert parameters: count those as zero)
+    missing = {n for n, p in vae.named_parameters() if p.grad is None or not p.grad.abs().max() > 1e-7}
     # With a single memory token (z) the cross-attention softmax is identically 1, so its query path
     # (norm_cross, cross.q) is inert by construction; everything else must learn.
     inert = {n for n, _ in vae.named_parameters() if ".norm_cross." in n or ".cross.q." in n}

@@ -62,8 +62,8 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     assert proc.returncode == -signal.SIGKILL
     saved = checkpoint_step(last)  # the checkpoint survived the kill intact
     assert saved >= 6 and not list(run.rglob("*.tmp"))
-    done = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 3, "--checkpoint-every", 3),
-                          capture_output=True, text=True)
+    done = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 3, "--checkpoint-every", 3,
+                              "--log-every", 1), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     assert f"at step {saved}" in done.stdout
     assert checkpoint_step(last) == saved + 3

@@ -84,6 +84,13 @@ class SpeechModule(L.LightningModule):
         self.seed = seed
         torch.manual_seed(seed)  # weight initialisation, reproducible per run seed
         self.model = SpeechDisentangler(self.cfg.model)
+        # the linear heads of switched-off extension terms take no part (DDP requires every trained
+        # parameter to receive a gradient)
+        for term, heads in (("latent_classes", ("emotion_from_latent", "speaker_from_latent")),
+                            ("adversarial", ("speaker_adversary", "emotion_adversary"))):
+            if getattr(self.cfg.losses, term) == 0:
+                for name in heads:
+                    getattr(self.model, name).requires_grad_(False)
 
     def on_train_epoch_start(self) -> None:
         loader = self.trainer.train_dataloader
@@ -107,7 +114,8 @@ class SpeechModule(L.LightningModule):
 
     def configure_optimizers(self):
         c = self.cfg
-        opt = torch.optim.Adam(self.model.parameters(), lr=c.lr, betas=tuple(c.betas), weight_decay=c.weight_decay)
+        params = [p for p in self.model.parameters() if p.requires_grad]
+        opt = torch.optim.Adam(params, lr=c.lr, betas=tuple(c.betas), weight_decay=c.weight_decay)
 
         def factor(step: int) -> float:
             if step < c.lr_decay_start:
