@@ -24,7 +24,7 @@ from emogesture.errors import EmogestureError, OutputExistsError
 from emogesture.eval.classification import classification_report
 from emogesture.eval.metrics import METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk
 from emogesture.eval.plots import save_confusion_matrix
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
 
 COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk")
 
@@ -78,8 +78,8 @@ class GestureEvaluator:
             f, lg = self.extractor.model((x - self.mean) / self.std)
             feats.append(f.numpy())
             logits.append(lg.numpy())
-            poses, trans = features_to_poses(x, self.spec)
-            joints.append(self.body(poses, trans).numpy())
+            rotations, trans = features_to_matrices(x, self.spec)
+            joints.append(self.body.forward_matrices(rotations, trans).numpy())
         return Embedded(np.concatenate(feats), np.concatenate(logits), np.concatenate(joints))
 
     def score(self, motion: np.ndarray, labels: np.ndarray | None = None, seed: int = 0) -> tuple[dict, np.ndarray]:
