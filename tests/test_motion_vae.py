@@ -200,3 +200,22 @@ def test_tiny_vae_overfits_a_small_batch():
     after = error()
     print(f"overfit: reconstruction MSE {before:.3f} -> {after:.3f}")
     assert after < 0.5 * before
+
+
+def test_frames_per_token_groups_frames_and_keeps_every_length():
+    cfg = MotionVAEConfig.preset("tiny", frames=30)
+    cfg.frames_per_token = 5
+    vae = MotionVAE(cfg).eval()
+    assert vae.encoder_pos.shape[1] == 2 + 6 and vae.encoder_input.in_features == 5 * 282
+    for t in (30, 23, 1):
+        x = torch.randn(2, t, 282, generator=_gen(t))
+        recon, z, mu, logvar = vae(x, sample=False)
+        assert recon.shape == (2, t, 282) and z.shape == (2, 256)
+    # a shorter window equals the full window padded with its last frame, cropped
+    x = torch.randn(1, 23, 282, generator=_gen(2))
+    padded = torch.cat([x, x[:, -1:].expand(1, 2, 282)], dim=1)
+    assert torch.allclose(vae.encode(x, sample=False)[1], vae.encode(padded, sample=False)[1], atol=1e-5)
+    z = torch.randn(1, 256, generator=_gen(3))
+    assert torch.allclose(vae.decode(z, frames=23), vae.decode(z, frames=25)[:, :23], atol=1e-6)
+    with pytest.raises(ConfigError, match="does not divide"):
+        MotionVAEConfig(frames=30, frames_per_token=7)

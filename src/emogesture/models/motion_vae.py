@@ -13,6 +13,11 @@ With one memory token the cross-attention softmax is identically 1, so each cros
 (values must differ per frame, or attention could not tell frames apart) and inside every attention.
 
 Windows may be shorter than ``frames`` (the maximum; the positional tables are sized to it).
+
+``frames_per_token = k > 1`` (not in MLD; default 1) makes every transformer token ``k`` consecutive
+frames: the encoder input Linear reads ``k × 282`` numbers and the decoder output Linear writes them,
+so attention runs over ``frames / k`` tokens (a window shorter than a multiple of ``k`` is padded with
+its last frame and the output cropped).
 """
 
 from __future__ import annotations
@@ -38,10 +43,13 @@ class MotionVAEConfig:
     heads: int = 4
     ff_dim: int = 1024
     dropout: float = 0.1
+    frames_per_token: int = 1
 
     def __post_init__(self) -> None:
-        if min(self.feature_dim, self.frames, self.latent_dim) < 1:
-            raise ConfigError("motion VAE: feature_dim, frames and latent_dim must be positive")
+        if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token) < 1:
+            raise ConfigError("motion VAE: feature_dim, frames, latent_dim and frames_per_token must be positive")
+        if self.frames % self.frames_per_token:
+            raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
 
     def transformer(self, cross_attention: bool) -> SkipTransformerConfig:
@@ -79,17 +87,18 @@ class MotionVAE(nn.Module):
         c = config
         d = c.width
         # Encoder P_E.
-        self.encoder_input = nn.Linear(c.feature_dim, d)
+        k, tokens = c.frames_per_token, c.frames // c.frames_per_token
+        self.encoder_input = nn.Linear(k * c.feature_dim, d)
         self.dist_tokens = nn.Parameter(torch.zeros(1, 2, d))  # [μ token, log σ² token]
-        self.encoder_pos = nn.Parameter(torch.zeros(1, 2 + c.frames, d))
+        self.encoder_pos = nn.Parameter(torch.zeros(1, 2 + tokens, d))
         self.encoder = SkipTransformer(c.transformer(cross_attention=False))
         self.to_mu = nn.Linear(d, c.latent_dim) if d != c.latent_dim else nn.Identity()
         self.to_logvar = nn.Linear(d, c.latent_dim) if d != c.latent_dim else nn.Identity()
         # Decoder P_D.
-        self.decoder_pos = nn.Parameter(torch.zeros(1, c.frames, d))
+        self.decoder_pos = nn.Parameter(torch.zeros(1, tokens, d))
         self.latent_to_memory = nn.Linear(c.latent_dim, d) if d != c.latent_dim else nn.Identity()
         self.decoder = SkipTransformer(c.transformer(cross_attention=True))
-        self.decoder_output = nn.Linear(d, c.feature_dim)
+        self.decoder_output = nn.Linear(d, k * c.feature_dim)
         for p in (self.dist_tokens, self.encoder_pos, self.decoder_pos):
             nn.init.trunc_normal_(p, std=0.02)
 
@@ -107,9 +116,13 @@ class MotionVAE(nn.Module):
         Returns: ``z [B, 256]``, ``mu [B, 256]``, ``logvar [B, 256]``.
         """
         self._check_motion(motion)
-        b, t, _ = motion.shape
-        x = torch.cat([self.dist_tokens.expand(b, -1, -1), self.encoder_input(motion)], dim=1)
-        y = self.encoder(x, self.encoder_pos[:, : t + 2])
+        b, t, f = motion.shape
+        k = self.config.frames_per_token
+        n = -(-t // k)  # tokens
+        if n * k != t:
+            motion = torch.cat([motion, motion[:, -1:].expand(b, n * k - t, f)], dim=1)
+        x = torch.cat([self.dist_tokens.expand(b, -1, -1), self.encoder_input(motion.reshape(b, n, k * f))], dim=1)
+        y = self.encoder(x, self.encoder_pos[:, : n + 2])
         mu, logvar = self.to_mu(y[:, 0]), self.to_logvar(y[:, 1])
         if not sample:
             return mu, mu, logvar
@@ -125,9 +138,11 @@ class MotionVAE(nn.Module):
         if z.dim() != 2 or z.shape[-1] != c.latent_dim:
             raise ValueError(f"motion VAE expects z [B, {c.latent_dim}], got {tuple(z.shape)}")
         memory = self.latent_to_memory(z).unsqueeze(1)  # [B, 1, d]
-        pos = self.decoder_pos[:, :t]
-        queries = torch.zeros(z.shape[0], t, c.width, device=z.device, dtype=z.dtype) + pos
-        return self.decoder_output(self.decoder(queries, pos, memory))
+        n = -(-t // c.frames_per_token)  # tokens
+        pos = self.decoder_pos[:, :n]
+        queries = torch.zeros(z.shape[0], n, c.width, device=z.device, dtype=z.dtype) + pos
+        out = self.decoder_output(self.decoder(queries, pos, memory))  # [B, n, k * D]
+        return out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
 
     def forward(
         self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True
