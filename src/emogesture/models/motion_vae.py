@@ -18,8 +18,9 @@ Windows may be shorter than ``frames`` (the maximum; the positional tables are s
 frames: the encoder input Linear reads ``k × 282`` numbers and the decoder output Linear writes them,
 so attention runs over ``frames / k`` tokens (a window shorter than a multiple of ``k`` is padded with
 its last frame and the output cropped). Measured once on the synthetic corpus (prior-only training,
-300 steps, batch 32): with ``k = 10`` the prior's held-out joint error was 0.997 of the mean pose's,
-with ``k = 1`` 0.528, so grouping alone does not make the tiny prior learn faster.
+batch 32): after 300 steps the training reconstruction loss was 0.146 with ``k = 10`` against 0.109
+with ``k = 1``, and the ``k = 10`` prior's held-out joint error was still 0.997 of the mean pose's:
+grouping alone does not make the tiny prior learn faster.
 """
 
 from __future__ import annotations
