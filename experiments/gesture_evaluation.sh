@@ -6,12 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 STEPS=${1:-600}
-EG=.venv/bin/emogesture
-WORK=outputs/experiments
-$EG corpus --out outputs/demo/corpus --resume --quiet
-$EG prepare outputs/demo/corpus --out outputs/demo/cache --quiet
+source experiments/common.sh
 start=$(date +%s)
-$EG train extractor --data outputs/demo/cache --out "$WORK/extractor" --steps "$STEPS" --checkpoint-every 100 --quiet
+$EG train extractor --data "$CACHE" --out "$WORK/extractor" --steps "$STEPS" --checkpoint-every 100 --quiet
 echo "extractor training wall time: $(( $(date +%s) - start )) s" | tee "$WORK/extractor.time"
-$EG evaluate gesture --data outputs/demo/cache --extractor "$WORK/extractor" --split test \
+$EG evaluate gesture --data "$CACHE" --extractor "$WORK/extractor" --split test \
     --out experiments/reports/gesture_eval --overwrite

@@ -12,13 +12,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 STEPS=${1:-600}
 SPEECH_LOSSES=${2:-adversarial}
-EG=.venv/bin/emogesture
-WORK=outputs/experiments
-CACHE=outputs/demo/cache
+source experiments/common.sh
 REPORT=experiments/reports/gesture_model
 SPEECH="$WORK/speech_$SPEECH_LOSSES"
-$EG corpus --out outputs/demo/corpus --resume --quiet
-$EG prepare outputs/demo/corpus --out "$CACHE" --quiet
 [ -f "$SPEECH/model.json" ] || bash experiments/speech_disentanglement.sh 1400 "$SPEECH_LOSSES"
 [ -f "$WORK/extractor/model.json" ] || $EG train extractor --data "$CACHE" --out "$WORK/extractor" --steps 600 \
     --checkpoint-every 100 --quiet

@@ -8,14 +8,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 STEPS=${1:-1400}
 LOSSES=${2:-adversarial}
-EG=.venv/bin/emogesture
-WORK=outputs/experiments
-$EG corpus --out outputs/demo/corpus --resume --quiet
-$EG prepare outputs/demo/corpus --out outputs/demo/cache --quiet
+source experiments/common.sh
 start=$(date +%s)
-$EG train speech --data outputs/demo/cache --out "$WORK/speech_$LOSSES" --losses "$LOSSES" --steps "$STEPS" \
+$EG train speech --data "$CACHE" --out "$WORK/speech_$LOSSES" --losses "$LOSSES" --steps "$STEPS" \
     --set "train_splits=[train, val]" --checkpoint-every 100 --quiet
 elapsed=$(( $(date +%s) - start ))
-$EG evaluate speech "$WORK/speech_$LOSSES" --data outputs/demo/cache --split test \
+$EG evaluate speech "$WORK/speech_$LOSSES" --data "$CACHE" --split test \
     --out experiments/reports/speech_tiny_$LOSSES --overwrite
 echo "training wall time: $elapsed s for $STEPS steps ($(nproc) cores)" | tee experiments/reports/speech_tiny_$LOSSES/training_time.txt
