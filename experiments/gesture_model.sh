@@ -5,17 +5,17 @@
 # reconstruction error, emotion edits and a 65-s long-audio seam check).
 # Needs the speech model of experiments/speech_disentanglement.sh and the extractor of
 # experiments/gesture_evaluation.sh (each is trained here when missing; both resume).
-# Two trainings run side by side, one CPU thread each: (joint, disjoint), then (no_prior, no_audio).
+# Two workers run side by side, one CPU thread each: joint then no_prior, and no_audio then disjoint.
 # Writes experiments/reports/gesture_model/ (gesture_models_test.{json,md}, Table-1 report, PNGs, times).
-# Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES]   (defaults: 600 adversarial)
+# Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES]   (defaults: 900 adversarial)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-STEPS=${1:-600}
+STEPS=${1:-900}
 SPEECH_LOSSES=${2:-adversarial}
 source experiments/common.sh
 REPORT=experiments/reports/gesture_model
 SPEECH="$WORK/speech_$SPEECH_LOSSES"
-[ -f "$SPEECH/model.json" ] || bash experiments/speech_disentanglement.sh 1400 "$SPEECH_LOSSES"
+[ -f "$SPEECH/model.json" ] || bash experiments/speech_disentanglement.sh 1300 "$SPEECH_LOSSES"
 [ -f "$WORK/extractor/model.json" ] || $EG train extractor --data "$CACHE" --out "$WORK/extractor" --steps 600 \
     --checkpoint-every 100 --quiet
 mkdir -p "$REPORT"
@@ -23,13 +23,15 @@ mkdir -p "$REPORT"
 train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, writes its wall time
     local variant=$1 start
     start=$(date +%s)
+    # disjoint: the first half of the steps trains the prior, the second half the denoiser
     OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
-        --out "$WORK/gesture_$variant" --steps "$STEPS" --checkpoint-every 200 --quiet
+        --out "$WORK/gesture_$variant" --steps "$STEPS" --checkpoint-every 200 --quiet \
+        --set "disjoint_prior_steps=$((STEPS / 2))"
     echo "$variant: $(( $(date +%s) - start )) s for $STEPS steps (1 thread, beside another training)" \
         > "$WORK/gesture_$variant.time"
 }
-train joint & train disjoint & wait
-train no_prior & train no_audio & wait
+queue() { for variant in "$@"; do train "$variant"; done; }  # one worker: its variants in turn
+queue joint no_prior & queue no_audio disjoint & wait
 cat "$WORK"/gesture_{joint,disjoint,no_prior,no_audio}.time | tee "$REPORT/training_time.txt"
 
 $EG evaluate gesture --data "$CACHE" --extractor "$WORK/extractor" --split test --out "$REPORT" --overwrite \

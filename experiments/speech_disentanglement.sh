@@ -3,10 +3,10 @@
 # training on the train and val texts), evaluated on the held-out test texts. Writes experiments/reports/speech_tiny_<LOSSES>/ (JSON, markdown,
 # PNGs, training time). LOSSES: full (the paper's seven terms), adversarial (plus latent adversaries),
 # emotion_only, style_only.
-# Usage: experiments/speech_disentanglement.sh [STEPS] [LOSSES]   (defaults: 1400 adversarial)
+# Usage: experiments/speech_disentanglement.sh [STEPS] [LOSSES]   (defaults: 1300 adversarial)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-STEPS=${1:-1400}
+STEPS=${1:-1300}
 LOSSES=${2:-adversarial}
 source experiments/common.sh
 start=$(date +%s)

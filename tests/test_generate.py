@@ -15,9 +15,10 @@ from emogesture.checkpoints import save_model
 from emogesture.config import to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.prepare import PrepareConfig
+from emogesture.errors import EmogestureError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
-from emogesture.pipeline.generate import EditRequest, GesturePipeline, stitch
+from emogesture.pipeline.generate import EditRequest, GesturePipeline, choose_seam_candidates, stitch
 
 
 @pytest.fixture(scope="module")
@@ -91,6 +92,29 @@ def test_stitch_crossfades_without_jumps():
     inside = np.abs(np.diff(windows, axis=1)).max(2).ravel()
     assert jumps.max() < 5 * np.percentile(inside, 99)  # no raw-offset jump (~1) survives
     np.testing.assert_allclose(out[:200], windows[0][:200])  # outside overlaps a window is copied exactly
+
+
+def test_seam_candidates_continue_the_previous_window(runs):
+    # window 1's candidate 2 starts where window 0 ends; window 2's candidate 1 continues that one
+    T, starts = 10, [0, 8, 16]
+    cand = np.full((3, 3, T, 1), 5.0)
+    cand[0, 0, :, 0] = np.arange(T)
+    cand[1, 2, :, 0] = 8 + np.arange(T)
+    cand[1, 0, :, 0] = 0.0
+    cand[2, 1, :, 0] = 16 + np.arange(T)
+    chosen = choose_seam_candidates(cand, starts)
+    assert np.array_equal(chosen[:, 0, 0], [0.0, 8.0, 16.0])
+    assert np.array_equal(choose_seam_candidates(cand[:, :1], starts), cand[:, 0])
+    # through the pipeline: one candidate is the old behaviour, more candidates never enlarge the
+    # mismatch between neighbouring windows and stay deterministic
+    pipe = GesturePipeline.from_run(runs / "gesture")
+    wave = pipe.load_speech(runs / "long.wav")[: 30 * 16000]
+    one = pipe.generate(wave, seed=1, seam_candidates=1)[0]
+    four = pipe.generate(wave, seed=1, seam_candidates=4)[0]
+    assert np.array_equal(four.poses, pipe.generate(wave, seed=1, seam_candidates=4)[0].poses)
+    np.testing.assert_allclose(one.poses[:200], four.poses[:200])  # window 0 is candidate 0 either way
+    with pytest.raises(EmogestureError, match="seam_candidates"):
+        pipe.generate(wave, seam_candidates=0)
 
 
 def test_cli_errors_are_one_line(runs, tmp_path):

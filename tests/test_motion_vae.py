@@ -63,7 +63,9 @@ def test_mu_and_logvar_come_from_the_two_distribution_tokens(tiny):
         handle.remove()
     out = seen["out"]
     assert out.shape == (2, 52, tiny.config.width)  # 2 distribution tokens + 50 frames
-    torch.testing.assert_close(mu, tiny.to_mu(out[:, 0]))
+    # μ: the μ token plus the tiny preset's low-frequency path (DCT coefficients of the frame embeddings)
+    coefficients = torch.einsum("nf,bnd->bfd", tiny.dct_basis[:50], tiny.encoder_input(x)) / 50
+    torch.testing.assert_close(mu, tiny.to_mu(out[:, 0]) + tiny.low_frequency_mu(coefficients.reshape(2, -1)))
     torch.testing.assert_close(logvar, tiny.to_logvar(out[:, 1]))
     # The token parameters matter: perturbing the μ token changes μ.
     vae = MotionVAE(tiny.config).eval()
@@ -73,12 +75,15 @@ def test_mu_and_logvar_come_from_the_two_distribution_tokens(tiny):
     assert (vae.encode(x, sample=False)[1] - mu).abs().max() > 1e-3
 
 
-def test_decoder_reads_z_only_through_cross_attention(tiny):
+def test_decoder_reads_z_only_through_cross_attention_and_the_low_frequency_path(tiny):
     z1, z2 = torch.randn(2, 2, 256, generator=_gen(4))
     assert (tiny.decode(z1, 40) - tiny.decode(z2, 40)).abs().max() > 1e-3
     vae = MotionVAE(tiny.config).eval()
     vae.load_state_dict(tiny.state_dict())
     with torch.no_grad():
+        vae.low_frequency_out.weight.zero_()
+        vae.low_frequency_out.bias.zero_()
+        assert (vae.decode(z1, 40) - vae.decode(z2, 40)).abs().max() > 1e-3
         for block in [*vae.decoder.input_blocks, vae.decoder.middle_block, *vae.decoder.output_blocks]:
             block.cross.proj.weight.zero_()
             block.cross.proj.bias.zero_()
@@ -131,7 +136,7 @@ def test_paper_parameter_count():
     t = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("tiny")).parameters())
     print(f"motion VAE parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M")
     assert 12e6 < n < 25e6  # 9+9 layers of width 256, ff 1024 (+ cross-attention in the decoder)
-    assert t < 1e6
+    assert t < 2e6
 
 
 def test_gradients_reach_every_parameter():
@@ -204,7 +209,7 @@ def test_tiny_vae_overfits_a_small_batch():
 
 def test_frames_per_token_groups_frames_and_keeps_every_length():
     cfg = MotionVAEConfig.preset("tiny", frames=30)
-    cfg.frames_per_token = 5
+    cfg.frames_per_token, cfg.low_frequency_path = 5, 3
     vae = MotionVAE(cfg).eval()
     assert vae.encoder_pos.shape[1] == 2 + 6 and vae.encoder_input.in_features == 5 * 282
     for t in (30, 23, 1):
@@ -219,3 +224,54 @@ def test_frames_per_token_groups_frames_and_keeps_every_length():
     assert torch.allclose(vae.decode(z, frames=23), vae.decode(z, frames=25)[:, :23], atol=1e-6)
     with pytest.raises(ConfigError, match="does not divide"):
         MotionVAEConfig(frames=30, frames_per_token=7)
+
+
+def test_latent_tokens_split_z_into_distribution_and_memory_tokens():
+    cfg = MotionVAEConfig.preset("tiny", frames=30)
+    cfg.latent_tokens, cfg.low_frequency_path = 8, 0
+    vae = MotionVAE(cfg).eval()
+    assert vae.dist_tokens.shape[1] == 16 and vae.encoder_pos.shape[1] == 16 + 30
+    x = torch.randn(2, 30, 282, generator=_gen(0))
+    recon, z, mu, logvar = vae(x, sample=False)
+    assert recon.shape == x.shape and z.shape == mu.shape == logvar.shape == (2, 256)
+    # μ part k comes from distribution token k, log σ² part k from token 8 + k
+    captured = {}
+    vae.encoder.register_forward_hook(lambda mod, inp, out: captured.setdefault("y", out))
+    vae.encode(x, sample=False)
+    y = captured["y"]
+    assert torch.allclose(mu.reshape(2, 8, 32)[:, 3], vae.to_mu(y[:, 3]), atol=1e-6)
+    assert torch.allclose(logvar.reshape(2, 8, 32)[:, 5], vae.to_logvar(y[:, 13]), atol=1e-6)
+    # the decoder reads every part of z (changing one part changes the output)
+    z2 = z.clone()
+    z2[:, 32 * 7 :] += 1.0
+    assert not torch.allclose(vae.decode(z), vae.decode(z2))
+    with pytest.raises(ConfigError, match="does not divide"):
+        MotionVAEConfig(latent_tokens=3)
+
+
+def test_low_frequency_path_adds_dct_analysis_and_synthesis():
+    cfg = MotionVAEConfig.preset("tiny", frames=30)
+    cfg.low_frequency_path = 4
+    vae = MotionVAE(cfg).eval()
+    basis = vae.dct_basis
+    assert basis.shape == (30, 4) and torch.allclose(basis[:, 0], torch.ones(30))
+    # DCT-II columns are orthogonal
+    gram = basis.T @ basis
+    assert torch.allclose(gram - torch.diag(torch.diagonal(gram)), torch.zeros(4, 4), atol=1e-4)
+    z = torch.randn(2, 256, generator=_gen(0))
+    with torch.no_grad():
+        vae.decoder_output.weight.zero_()
+        vae.decoder_output.bias.zero_()
+    coefficients = vae.low_frequency_out(z).reshape(2, 4, 282)
+    expected = torch.einsum("nf,bfe->bne", basis, coefficients)
+    assert torch.allclose(vae.decode(z), expected, atol=1e-5)
+    assert torch.allclose(vae.decode(z, frames=17), expected[:, :17], atol=1e-5)
+    # the encoder's μ moves with the window's slow content through the path
+    x = torch.randn(1, 30, 282, generator=_gen(1))
+    mu = vae.encode(x, sample=False)[1]
+    with torch.no_grad():
+        vae.low_frequency_mu.weight.zero_()
+        vae.low_frequency_mu.bias.zero_()
+    assert not torch.allclose(vae.encode(x, sample=False)[1], mu)
+    with pytest.raises(ConfigError, match="low_frequency_path"):
+        MotionVAEConfig(frames=30, low_frequency_path=31)

@@ -34,6 +34,14 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     meta = json.loads((run / "model.json").read_text())
     assert meta["kind"] == "speech" and meta["extra"]["step"] == 4 and meta["extra"]["speakers"] == [1, 2, 3]
+    # the exported weights are the weight average kept in the checkpoint, not the last raw weights
+    import torch
+    from safetensors.torch import load_file
+
+    exported = load_file(run / "model.safetensors")
+    state = torch.load(run / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)["state_dict"]
+    assert all(torch.equal(v, state[f"ema.{k}"]) for k, v in exported.items())
+    assert any(not torch.equal(v, state[f"model.{k}"]) for k, v in exported.items())
     ev = subprocess.run(cli("evaluate", "speech", run, "--data", cache, "--quadruples", 4),
                         capture_output=True, text=True)
     assert ev.returncode == 0, ev.stderr[-2000:]

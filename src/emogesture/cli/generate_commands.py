@@ -25,6 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--style-from", type=Path, metavar="WAV", help="take the speaker style from this recording")
     p.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
+    p.add_argument("--seam-candidates", type=int, default=4,
+                   help="samples drawn per window to continue the previous window best (default 4; 1 = off)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.set_defaults(func=run_generate)
 
@@ -38,6 +40,8 @@ def run_generate(args: argparse.Namespace) -> int:
         raise EmogestureError(f"--emotion-weight {args.emotion_weight}: must be between 0 and 1")
     if args.samples < 1:
         raise EmogestureError("--samples must be at least 1")
+    if args.seam_candidates < 1:
+        raise EmogestureError("--seam-candidates must be at least 1")
     pipe = GesturePipeline.from_run(args.model, args.speech_model)
     wave = pipe.load_speech(args.speech)
     edit, tag = None, ""
@@ -56,7 +60,8 @@ def run_generate(args: argparse.Namespace) -> int:
         for path in paths:
             if path.exists():
                 raise OutputExistsError(path)
-    sequences = pipe.generate(wave, edit=edit, seed=args.seed, samples=args.samples)
+    sequences = pipe.generate(wave, edit=edit, seed=args.seed, samples=args.samples,
+                              seam_candidates=args.seam_candidates)
     for seq, path in zip(sequences, paths):
         save_smplx_npz(seq, path, overwrite=args.overwrite)
         print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)")

@@ -2,8 +2,11 @@
 
 Audio of any length is covered by 10-s windows every ``hop_seconds`` (default 8 s, so neighbours
 overlap by 2 s); each window is generated on its own and the overlaps are cross-faded in the 6D
-rotation features (a raised-cosine ramp, re-orthonormalised when turned into rotations), so no seam
-jumps. Output length is ``round(duration * 30)`` frames.
+rotation features (a raised-cosine ramp, re-orthonormalised when turned into rotations). Two
+independent samples can disagree in the overlap, and a cross-fade between poses far apart is a fast
+movement; so each window after the first is drawn ``seam_candidates`` times (default 4, each from its
+own seed) and the candidate closest to the already chosen previous window over their overlap (mean
+squared feature difference) is kept. Output length is ``round(duration * 30)`` frames.
 
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
@@ -55,6 +58,23 @@ def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.nda
             w[i, :overlap] *= ramp
             w[i - 1, window - overlap :] *= 1.0 - ramp
     return w
+
+
+def choose_seam_candidates(candidates: np.ndarray, starts: list[int]) -> np.ndarray:
+    """Candidates ``[W, K, T, D]`` -> windows ``[W, T, D]``: candidate 0 for the first window, then for
+    each window the candidate with the smallest mean squared difference to the chosen previous window
+    over their overlap (candidate 0 when windows do not overlap)."""
+    w, k, t, _ = candidates.shape
+    chosen = [candidates[0, 0]]
+    for i in range(1, w):
+        overlap = starts[i - 1] + t - starts[i]
+        if overlap <= 0 or k == 1:
+            chosen.append(candidates[i, 0])
+            continue
+        previous = chosen[-1][t - overlap :]
+        error = ((candidates[i, :, :overlap] - previous[None]) ** 2).mean(axis=(1, 2))
+        chosen.append(candidates[i, int(np.argmin(error))])
+    return np.stack(chosen)
 
 
 def stitch(windows: np.ndarray, starts: list[int], num_frames: int) -> np.ndarray:
@@ -131,16 +151,29 @@ class GesturePipeline:
         return generate_from_conditions(self.loaded, conditions, seeds)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
-                 hop_seconds: float = 8.0) -> list[SMPLXSequence]:
-        """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames."""
+                 hop_seconds: float = 8.0, seam_candidates: int = 4) -> list[SMPLXSequence]:
+        """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
+
+        ``seam_candidates``: samples drawn per window (after the first) to pick the one that continues
+        the previous window best (see the module docstring); 1 = every window independent.
+        """
+        if seam_candidates < 1:
+            raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
         enc, starts_s = self.encode(waveform, hop_seconds)
         conds = self.conditions(enc, edit)
         num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
+        n = len(starts)
+        k_cand = seam_candidates if n > 1 else 1
+        repeated = [np.repeat(c, k_cand, axis=0) for c in conds]  # window-major: [W * K, 256]
         out = []
         for k in range(samples):
-            seeds = [int(np.random.SeedSequence([seed, k, i]).generate_state(1)[0]) for i in range(len(starts))]
-            feats = stitch(self.generate_windows(conds, seeds), starts, num_frames)
+            # candidate 0 of window i keeps the seed it had before candidates existed
+            seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
+                     for i in range(n) for c in range(k_cand)]
+            candidates = self.generate_windows(repeated, seeds)
+            candidates = candidates.reshape(n, k_cand, *candidates.shape[1:])
+            feats = stitch(choose_seam_candidates(candidates, starts), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
             trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
             out.append(SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps))

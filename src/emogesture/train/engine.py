@@ -69,6 +69,29 @@ class RankDigest(Callback):
         (d / f"rank{trainer.global_rank}.txt").write_text(f"{trainer.global_step} {h.hexdigest()}\n")
 
 
+def make_ema(model: torch.nn.Module, decay: float) -> torch.nn.Module | None:
+    """A frozen copy of ``model`` that :func:`update_ema` keeps as the exponential moving average of its
+    weights (None when ``decay`` is 0). Registered as a submodule of the LightningModule, it is saved in
+    ``last.ckpt`` and resumes with it; the exported model is the average."""
+    if decay <= 0:
+        return None
+    if not decay < 1:
+        raise EmogestureError(f"ema_decay must be in [0, 1), got {decay}")
+    import copy
+
+    return copy.deepcopy(model).requires_grad_(False)
+
+
+@torch.no_grad()
+def update_ema(ema: torch.nn.Module, model: torch.nn.Module, decay: float, step: int) -> None:
+    """``ema ← d·ema + (1 − d)·model`` for every parameter (buffers are copied), with the usual warm-up
+    ``d = min(decay, (1 + step) / (10 + step))`` so early averages do not hold the random initialisation."""
+    d = min(decay, (1 + step) / (10 + step))
+    torch._foreach_lerp_(list(ema.parameters()), list(model.parameters()), 1.0 - d)
+    for b_ema, b in zip(ema.buffers(), model.buffers()):
+        b_ema.copy_(b)
+
+
 def checkpoint_step(path: Path) -> int:
     """The global step stored in a Lightning checkpoint (read without unpickling objects)."""
     return int(torch.load(path, map_location="cpu", weights_only=True)["global_step"])

@@ -28,6 +28,7 @@ from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
 from emogesture.pipeline.conditions import window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
+from emogesture.train.engine import make_ema, update_ema
 
 LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
 
@@ -53,6 +54,11 @@ class GestureTrainConfig:
     align_ddim_steps: int = 50  # DDIM steps of the no-gradient sampling in step (3) (paper: 50)
     align_every: int = 1  # run step (3) every N steps (paper: every step)
     disjoint_prior_steps: int = 500  # variant "disjoint": prior-only steps before the denoiser-only phase
+    #: Exponential moving average of the weights (0 = off); the exported model is the average.
+    ema_decay: float = 0.0
+    #: Joint positions enter L_Vrec and L_Valign in metres × this (smooth L1 is quadratic below 1 unit):
+    #: 1 = metres (MLD); the tiny preset uses 100 (centimetres) so joint errors of a few cm weigh in.
+    joint_scale: float = 1.0
     num_workers: int = 0
 
     @classmethod
@@ -61,7 +67,8 @@ class GestureTrainConfig:
         if size == "paper":
             cfg.batch_size = 64
         else:
-            cfg.lr, cfg.align_ddim_steps, cfg.align_every = 3e-4, 10, 2
+            cfg.lr, cfg.align_ddim_steps, cfg.align_every = 1e-3, 10, 2
+            cfg.ema_decay, cfg.joint_scale = 0.99, 100.0
         return cfg
 
 
@@ -97,11 +104,26 @@ class GestureModule(L.LightningModule):
             p.requires_grad_(False)
         self.ddpm = make_ddpm_scheduler(self.cfg.model.diffusion)
         self.ddim = make_ddim_scheduler(self.cfg.model.diffusion)
+        self.ema = make_ema(self.model, self.cfg.ema_decay)
+
+    @property
+    def averaged(self) -> GestureModel:
+        """The model to export: the weight average when ``ema_decay > 0``, else the trained weights."""
+        return self.model if self.ema is None else self.ema
+
+    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
+        if self.ema is not None:
+            update_ema(self.ema, self.model, self.cfg.ema_decay, self.global_step)
 
     def joints(self, normalised: torch.Tensor) -> torch.Tensor:
         """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""
         rotations, trans = features_to_matrices(normalised * self.std + self.mean, self.spec)
         return self.body.forward_matrices(rotations, trans)
+
+    def joint_loss(self, joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """Smooth L1 between joint positions ``[B, T, 55, 3]`` in units of ``1 / joint_scale`` metres."""
+        s = self.cfg.joint_scale
+        return F.smooth_l1_loss(joints * s, target * s)
 
     def _generator(self) -> torch.Generator:
         seed = np.random.SeedSequence([self.seed, self.global_step, self.global_rank]).generate_state(1)[0]
@@ -136,7 +158,7 @@ class GestureModule(L.LightningModule):
         if phase_prior:
             rec, z, mu, logvar = prior(m, generator=g)
             losses["rec"] = F.smooth_l1_loss(rec, m)
-            losses["vrec"] = F.smooth_l1_loss(self.joints(rec), joints_gt())
+            losses["vrec"] = self.joint_loss(self.joints(rec), joints_gt())
             if variant != "no_prior":
                 losses["kl"] = prior.kl_loss(mu, logvar)
         else:
@@ -153,7 +175,7 @@ class GestureModule(L.LightningModule):
                                       num_inference_steps=cfg.align_ddim_steps)
                 m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1])
                 losses["align"] = F.smooth_l1_loss(m_tilde, m)
-                losses["valign"] = F.smooth_l1_loss(self.joints(m_tilde), joints_gt())
+                losses["valign"] = self.joint_loss(self.joints(m_tilde), joints_gt())
         if audio_rec is not None:
             losses["audio_rec"] = audio_rec
         total = sum(getattr(w, k) * v for k, v in losses.items())
@@ -200,6 +222,6 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
             EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist() for k in sorted(set(train.emotion.tolist()))}
 
     def export(m: GestureModule, run_dir: Path) -> None:
-        save_model(run_dir, "gesture", m.model, m.cfg.model, {**extra, "step": m.global_step})
+        save_model(run_dir, "gesture", m.averaged, m.cfg.model, {**extra, "step": m.global_step})
 
     return data, module, export
