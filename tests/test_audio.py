@@ -499,3 +499,22 @@ def test_frame_energy() -> None:
     assert np.allclose(e[:29], 0.0)
     assert np.allclose(e[31:], 0.5 / np.sqrt(2), rtol=0.02)
     assert frame_energy(x[: int(1.01 * SR)], SR).shape == (round(1.01 * 30),)
+
+
+def test_scramble_segments_permutes_whole_segments() -> None:
+    from emogesture.audio import scramble_segments
+
+    x = torch.arange(2 * 22 * 3, dtype=torch.float32).reshape(2, 22, 3)
+    y = scramble_segments(x, torch.Generator().manual_seed(0), 5)  # 4 segments of 5 frames + 2 frames
+    assert y.shape == x.shape
+    for b in range(2):
+        starts = [int(y[b, 5 * k, 0] - x[b, 0, 0]) // 3 for k in range(4)]
+        assert sorted(starts) == [0, 5, 10, 15]  # every segment once, kept whole
+        for k, s in enumerate(starts):
+            assert torch.equal(y[b, 5 * k : 5 * k + 5], x[b, s : s + 5])
+        assert torch.equal(y[b, 20:], x[b, 20:])  # the partial tail stays last
+    assert torch.equal(y, scramble_segments(x, torch.Generator().manual_seed(0), 5))  # seeded
+    assert not all(torch.equal(scramble_segments(x, torch.Generator().manual_seed(s), 5), y) for s in range(1, 5))
+    assert torch.equal(scramble_segments(x, torch.Generator(), 22), x)  # one segment: nothing to move
+    with pytest.raises(ValueError, match="segment"):
+        scramble_segments(x, torch.Generator(), 0)

@@ -40,6 +40,10 @@ def test_tiny_output_shapes(tiny):
     assert tiny.decode(enc.content, enc.emotion, enc.style).shape == (2, 1024, 128)
     with pytest.raises(ValueError, match=r"\[B, 1024, 128\]"):
         tiny.encode(torch.zeros(2, 128, 1024))
+    # a separate emotion-encoder input changes the emotion outputs only
+    other = tiny.encode(x, emotion_fbank=torch.randn(2, 1024, 128, generator=_gen(2)))
+    assert torch.equal(other.content, enc.content) and torch.equal(other.style, enc.style)
+    assert not torch.allclose(other.emotion, enc.emotion) and not torch.allclose(other.emotion_logits, enc.emotion_logits)
 
 
 def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():

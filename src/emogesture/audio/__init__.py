@@ -6,7 +6,7 @@
     windows = fbank_windows(x, [0, 500])               # [W, 1024, 128]
 """
 
-from emogesture.audio.augment import augment_fbank
+from emogesture.audio.augment import augment_fbank, scramble_segments
 from emogesture.audio.fbank import (
     FLOAT32_EPS,
     WINDOW_TYPES,
@@ -55,6 +55,7 @@ __all__ = [
     "WINDOW_TYPES",
     "FbankConfig",
     "augment_fbank",
+    "scramble_segments",
     "check_speech",
     "denormalise_fbank",
     "detect_onsets",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-__all__ = ["augment_fbank"]
+__all__ = ["augment_fbank", "scramble_segments"]
 
 
 def _randint(low: int, high_inclusive: int, n: int, generator: torch.Generator) -> torch.Tensor:
@@ -70,3 +70,25 @@ def augment_fbank(
         shifts = _randint(-max_shift, max_shift, b, generator).tolist()
         y = torch.stack([torch.roll(y[i], shifts=s, dims=0) for i, s in enumerate(shifts)])
     return y[0] if single else y
+
+
+def scramble_segments(x: torch.Tensor, generator: torch.Generator, segment: int) -> torch.Tensor:
+    """Cut every window of ``x [B, T, F]`` into segments of ``segment`` frames and put them in a random
+    order, drawn per window from ``generator``; a trailing partial segment stays last.
+
+    Every frame is kept, so the window's spectral and prosodic statistics (loudness, pitch level and
+    range, spectral tilt, syllable rate) stay while the word order is destroyed: an emotion encoder
+    trained on it cannot key on which text is spoken.
+    """
+    if x.ndim != 3:
+        raise ValueError(f"fbank must be [B, T, F], got shape {tuple(x.shape)}")
+    if segment < 1:
+        raise ValueError(f"segment must be at least 1 frame, got {segment}")
+    b, t, _ = x.shape
+    n = t // segment
+    if n < 2:
+        return x.clone()
+    order = torch.stack([torch.randperm(n, generator=generator) for _ in range(b)])  # [B, n]
+    frames = (order[:, :, None] * segment + torch.arange(segment)).reshape(b, n * segment)
+    frames = torch.cat([frames, torch.arange(n * segment, t).expand(b, -1)], dim=1).to(x.device)
+    return torch.gather(x, 1, frames[:, :, None].expand(-1, -1, x.shape[2]))

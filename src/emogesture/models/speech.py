@@ -200,10 +200,14 @@ class SpeechDisentangler(nn.Module):
         self.emotion_from_latent = nn.Linear(config.latent_dim, config.num_emotions)
         self.speaker_from_latent = nn.Linear(config.latent_dim, config.num_speakers)
 
-    def encode(self, fbank: torch.Tensor) -> SpeechEncoding:
-        """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``."""
+    def encode(self, fbank: torch.Tensor, emotion_fbank: torch.Tensor | None = None) -> SpeechEncoding:
+        """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``.
+
+        ``emotion_fbank [B, 1024, 128]``: another input for the emotion encoder alone (training-time
+        augmentation); default ``fbank``.
+        """
         content, _ = self.content_encoder(fbank)
-        emotion, emotion_logits = self.emotion_encoder(fbank)
+        emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank)
         style, speaker_logits = self.style_encoder(fbank)
         return SpeechEncoding(content, emotion, style, emotion_logits, speaker_logits)
 

@@ -119,6 +119,7 @@ class _MeanAbsError(torch.autograd.Function):
 def speech_losses(
     model, fbank: torch.Tensor, emotion: torch.Tensor, speaker: torch.Tensor,
     config: SpeechLossConfig | None = None, target: torch.Tensor | None = None,
+    emotion_fbank: torch.Tensor | None = None,
 ) -> dict[str, torch.Tensor]:
     """Disentanglement losses of a batch of quadruples.
 
@@ -130,6 +131,8 @@ def speech_losses(
         config: term weights; ``None`` means :meth:`SpeechLossConfig.preset` ``"full"``.
         target: ``[B, 4, T, F]`` reconstruction targets when ``fbank`` is augmented (the clean
             windows); ``None`` reconstructs ``fbank`` itself.
+        emotion_fbank: ``[B, 4, T, F]`` input of the emotion encoder alone (e.g. word-order scrambled
+            windows); ``None`` gives it ``fbank``.
 
     Returns:
         A dict with a scalar per switched-on term (unweighted) and ``total`` (the weighted sum).
@@ -144,7 +147,8 @@ def speech_losses(
             f"expected emotion [{b}] and speaker [{b}, 4], got {tuple(emotion.shape)}, {tuple(speaker.shape)}"
         )
     active = config.active()
-    enc = model.encode(fbank.reshape(b * 4, t, f))
+    enc = model.encode(fbank.reshape(b * 4, t, f),
+                       None if emotion_fbank is None else emotion_fbank.reshape(b * 4, t, f))
     lat = [v.reshape(b, 4, -1) for v in (enc.content, enc.emotion, enc.style)]
     out: dict[str, torch.Tensor] = {}
     extras: dict[str, torch.Tensor] = {}  # logged, not part of the total

@@ -11,7 +11,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
-from emogesture.audio import augment_fbank
+from emogesture.audio import augment_fbank, scramble_segments
 from emogesture.checkpoints import save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
@@ -39,6 +39,9 @@ class SpeechTrainConfig:
     #: Exponential moving average of the weights (0 = off); the exported model is the average.
     ema_decay: float = 0.99
     augment: bool = True
+    #: Segment length (fbank frames) of the word-order scramble the emotion encoder alone sees during
+    #: training (0 = off; an extension): see :func:`emogesture.audio.augment.scramble_segments`.
+    emotion_scramble: int = 0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -122,7 +125,15 @@ class SpeechModule(L.LightningModule):
             b, k, t, f = fbank.shape
             inputs = augment_fbank(fbank.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
                                    self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
-        losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank)
+        emotion_inputs = None
+        if self.cfg.emotion_scramble > 0:
+            g = torch.Generator().manual_seed(int(np.random.SeedSequence(
+                [self.seed, self.global_step, self.global_rank, 1]).generate_state(1)[0]))
+            b, k, t, f = inputs.shape
+            emotion_inputs = scramble_segments(inputs.reshape(b * k, t, f).cpu(), g, self.cfg.emotion_scramble
+                                               ).reshape(b, k, t, f).to(inputs.device)
+        losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
+                               emotion_fbank=emotion_inputs)
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
