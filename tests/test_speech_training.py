@@ -55,6 +55,14 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
     assert other.returncode == 2 and "other settings" in other.stderr and len(other.stderr.strip().splitlines()) == 1
 
 
+def test_emotion_scramble_trains_and_is_recorded(cache, tmp_path):
+    run = tmp_path / "run"
+    out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 2, "--set", "emotion_scramble=64"),
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert json.loads((run / "run.json").read_text())["config"]["emotion_scramble"] == 64
+
+
 def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     run = tmp_path / "run"
     args = cli(*TRAIN, "--data", cache, "--out", run, "--steps", 400, "--checkpoint-every", 3)

@@ -42,6 +42,8 @@ class SpeechTrainConfig:
     #: Segment length (fbank frames) of the word-order scramble the emotion encoder alone sees during
     #: training (0 = off; an extension): see :func:`emogesture.audio.augment.scramble_segments`.
     emotion_scramble: int = 0
+    #: Share of the windows that get the scramble (the others keep their word order, as at inference).
+    emotion_scramble_share: float = 0.5
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -130,8 +132,10 @@ class SpeechModule(L.LightningModule):
             g = torch.Generator().manual_seed(int(np.random.SeedSequence(
                 [self.seed, self.global_step, self.global_rank, 1]).generate_state(1)[0]))
             b, k, t, f = inputs.shape
-            emotion_inputs = scramble_segments(inputs.reshape(b * k, t, f).cpu(), g, self.cfg.emotion_scramble
-                                               ).reshape(b, k, t, f).to(inputs.device)
+            flat = inputs.reshape(b * k, t, f).cpu()
+            chosen = torch.rand(b * k, generator=g) < self.cfg.emotion_scramble_share
+            flat = torch.where(chosen[:, None, None], scramble_segments(flat, g, self.cfg.emotion_scramble), flat)
+            emotion_inputs = flat.reshape(b, k, t, f).to(inputs.device)
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
                                emotion_fbank=emotion_inputs)
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
