@@ -92,6 +92,24 @@ def update_ema(ema: torch.nn.Module, model: torch.nn.Module, decay: float, step:
         b_ema.copy_(b)
 
 
+class AveragedWeightsMixin:
+    """For a LightningModule that trains ``self.model``: call :meth:`init_weight_average` in ``__init__``;
+    the average then follows every optimiser step and :attr:`averaged` is the model to export."""
+
+    def init_weight_average(self, decay: float) -> None:
+        self.ema_decay = decay
+        self.ema = make_ema(self.model, decay)
+
+    @property
+    def averaged(self) -> torch.nn.Module:
+        """The weight average when ``ema_decay > 0``, else the trained weights."""
+        return self.model if self.ema is None else self.ema
+
+    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
+        if self.ema is not None:
+            update_ema(self.ema, self.model, self.ema_decay, self.global_step)
+
+
 def checkpoint_step(path: Path) -> int:
     """The global step stored in a Lightning checkpoint (read without unpickling objects)."""
     return int(torch.load(path, map_location="cpu", weights_only=True)["global_step"])

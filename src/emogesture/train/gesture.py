@@ -28,7 +28,7 @@ from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
 from emogesture.pipeline.conditions import window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.train.engine import make_ema, update_ema
+from emogesture.train.engine import AveragedWeightsMixin
 
 LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
 
@@ -88,7 +88,7 @@ class GestureWindows(Dataset):
                 "conditions": [torch.from_numpy(np.asarray(c[i], np.float32)) for c in self.conditions]}
 
 
-class GestureModule(L.LightningModule):
+class GestureModule(AveragedWeightsMixin, L.LightningModule):
     def __init__(self, config: dict, motion_mean: list, motion_std: list, features: dict, seed: int = 0) -> None:
         super().__init__()
         self.save_hyperparameters()
@@ -104,16 +104,7 @@ class GestureModule(L.LightningModule):
             p.requires_grad_(False)
         self.ddpm = make_ddpm_scheduler(self.cfg.model.diffusion)
         self.ddim = make_ddim_scheduler(self.cfg.model.diffusion)
-        self.ema = make_ema(self.model, self.cfg.ema_decay)
-
-    @property
-    def averaged(self) -> GestureModel:
-        """The model to export: the weight average when ``ema_decay > 0``, else the trained weights."""
-        return self.model if self.ema is None else self.ema
-
-    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
-        if self.ema is not None:
-            update_ema(self.ema, self.model, self.cfg.ema_decay, self.global_step)
+        self.init_weight_average(self.cfg.ema_decay)
 
     def joints(self, normalised: torch.Tensor) -> torch.Tensor:
         """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""

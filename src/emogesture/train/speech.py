@@ -20,7 +20,7 @@ from emogesture.data.datasets import SpeechQuadrupleDataset
 from emogesture.errors import ConfigError
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
-from emogesture.train.engine import make_ema, update_ema
+from emogesture.train.engine import AveragedWeightsMixin
 
 
 @dataclass
@@ -85,7 +85,7 @@ class SpeechDataModule(L.LightningDataModule):
                           num_workers=self.num_workers, persistent_workers=False)
 
 
-class SpeechModule(L.LightningModule):
+class SpeechModule(AveragedWeightsMixin, L.LightningModule):
     """Wraps :class:`SpeechDisentangler` with the quadruple losses and the optimiser."""
 
     def __init__(self, config: dict, seed: int = 0) -> None:
@@ -102,16 +102,7 @@ class SpeechModule(L.LightningModule):
             if getattr(self.cfg.losses, term) == 0:
                 for name in heads:
                     getattr(self.model, name).requires_grad_(False)
-        self.ema = make_ema(self.model, self.cfg.ema_decay)
-
-    @property
-    def averaged(self) -> SpeechDisentangler:
-        """The model to export: the weight average when ``ema_decay > 0``, else the trained weights."""
-        return self.model if self.ema is None else self.ema
-
-    def on_train_batch_end(self, outputs, batch, batch_idx: int) -> None:
-        if self.ema is not None:
-            update_ema(self.ema, self.model, self.cfg.ema_decay, self.global_step)
+        self.init_weight_average(self.cfg.ema_decay)
 
     def on_train_epoch_start(self) -> None:
         loader = self.trainer.train_dataloader
