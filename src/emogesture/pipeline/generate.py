@@ -163,16 +163,20 @@ class GesturePipeline:
         conds = self.conditions(enc, edit)
         num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
-        n = len(starts)
-        k_cand = seam_candidates if n > 1 else 1
-        repeated = [np.repeat(c, k_cand, axis=0) for c in conds]  # window-major: [W * K, 256]
+        n, k_cand = len(starts), seam_candidates
+        # (window, candidate) pairs to draw: the first window needs one draw, the others k_cand
+        pairs = [(0, 0)] + [(i, c) for i in range(1, n) for c in range(k_cand)]
+        rows = np.array([i for i, _ in pairs])
+        picked = [c[rows] for c in conds]
         out = []
         for k in range(samples):
             # candidate 0 of window i keeps the seed it had before candidates existed
             seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
-                     for i in range(n) for c in range(k_cand)]
-            candidates = self.generate_windows(repeated, seeds)
-            candidates = candidates.reshape(n, k_cand, *candidates.shape[1:])
+                     for i, c in pairs]
+            drawn = self.generate_windows(picked, seeds)
+            candidates = np.empty((n, k_cand, *drawn.shape[1:]), drawn.dtype)
+            candidates[0] = drawn[0]  # the first window's draw stands for all its candidates (only 0 is used)
+            candidates[1:] = drawn[1:].reshape(n - 1, k_cand, *drawn.shape[1:])
             feats = stitch(choose_seam_candidates(candidates, starts), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
             trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
