@@ -147,8 +147,9 @@ def speech_losses(
             f"expected emotion [{b}] and speaker [{b}, 4], got {tuple(emotion.shape)}, {tuple(speaker.shape)}"
         )
     active = config.active()
-    enc = model.encode(fbank.reshape(b * 4, t, f),
-                       None if emotion_fbank is None else emotion_fbank.reshape(b * 4, t, f))
+    flat = fbank.reshape(b * 4, t, f)
+    enc = model.encode(flat) if emotion_fbank is None else model.encode(
+        flat, emotion_fbank=emotion_fbank.reshape(b * 4, t, f))
     lat = [v.reshape(b, 4, -1) for v in (enc.content, enc.emotion, enc.style)]
     out: dict[str, torch.Tensor] = {}
     extras: dict[str, torch.Tensor] = {}  # logged, not part of the total
