@@ -15,6 +15,7 @@ from a second audio (window ``i`` takes that audio's window ``i mod n``), or the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -60,20 +61,20 @@ def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.nda
     return w
 
 
-def choose_seam_candidates(candidates: np.ndarray, starts: list[int]) -> np.ndarray:
-    """Candidates ``[W, K, T, D]`` -> windows ``[W, T, D]``: candidate 0 for the first window, then for
-    each window the candidate with the smallest mean squared difference to the chosen previous window
-    over their overlap (candidate 0 when windows do not overlap)."""
-    w, k, t, _ = candidates.shape
-    chosen = [candidates[0, 0]]
-    for i in range(1, w):
+def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int]) -> np.ndarray:
+    """Per window, its candidates ``[K_i, T, D]`` (a ``[W, K, T, D]`` array works) -> windows ``[W, T, D]``:
+    candidate 0 for the first window, then for each window the candidate with the smallest mean squared
+    difference to the chosen previous window over their overlap (candidate 0 when windows do not overlap)."""
+    chosen = [candidates[0][0]]
+    for i in range(1, len(candidates)):
+        t = candidates[i].shape[1]
         overlap = starts[i - 1] + t - starts[i]
-        if overlap <= 0 or k == 1:
-            chosen.append(candidates[i, 0])
+        if overlap <= 0 or len(candidates[i]) == 1:
+            chosen.append(candidates[i][0])
             continue
         previous = chosen[-1][t - overlap :]
-        error = ((candidates[i, :, :overlap] - previous[None]) ** 2).mean(axis=(1, 2))
-        chosen.append(candidates[i, int(np.argmin(error))])
+        error = ((candidates[i][:, :overlap] - previous[None]) ** 2).mean(axis=(1, 2))
+        chosen.append(candidates[i][int(np.argmin(error))])
     return np.stack(chosen)
 
 
@@ -174,9 +175,7 @@ class GesturePipeline:
             seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                      for i, c in pairs]
             drawn = self.generate_windows(picked, seeds)
-            candidates = np.empty((n, k_cand, *drawn.shape[1:]), drawn.dtype)
-            candidates[0] = drawn[0]  # the first window's draw stands for all its candidates (only 0 is used)
-            candidates[1:] = drawn[1:].reshape(n - 1, k_cand, *drawn.shape[1:])
+            candidates = [drawn[:1], *drawn[1:].reshape(n - 1, k_cand, *drawn.shape[1:])]
             feats = stitch(choose_seam_candidates(candidates, starts), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
             trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)

@@ -9,6 +9,7 @@ re-running the same command resumes from ``last.ckpt``.
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import lightning as L
+import numpy as np
 import torch
 from lightning.fabric.plugins.io.torch_io import TorchCheckpointIO
 from lightning.pytorch.callbacks import Callback, ModelCheckpoint, TQDMProgressBar
@@ -69,6 +71,13 @@ class RankDigest(Callback):
         (d / f"rank{trainer.global_rank}.txt").write_text(f"{trainer.global_step} {h.hexdigest()}\n")
 
 
+def step_generator(seed: int, step: int, rank: int, *stream: int) -> torch.Generator:
+    """The CPU generator of one training step on one rank: a function of (run seed, step, rank) and an
+    optional stream number, so a resumed run draws what an uninterrupted one would have drawn."""
+    state = np.random.SeedSequence([seed, step, rank, *stream]).generate_state(1)[0]
+    return torch.Generator().manual_seed(int(state))
+
+
 def make_ema(model: torch.nn.Module, decay: float) -> torch.nn.Module | None:
     """A frozen copy of ``model`` that :func:`update_ema` keeps as the exponential moving average of its
     weights (None when ``decay`` is 0). Registered as a submodule of the LightningModule, it is saved in
@@ -77,8 +86,6 @@ def make_ema(model: torch.nn.Module, decay: float) -> torch.nn.Module | None:
         return None
     if not decay < 1:
         raise EmogestureError(f"ema_decay must be in [0, 1), got {decay}")
-    import copy
-
     return copy.deepcopy(model).requires_grad_(False)
 
 

@@ -17,6 +17,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.datasets import WindowDataset
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
+from emogesture.train.engine import step_generator
 
 
 @dataclass
@@ -60,8 +61,7 @@ class ExtractorModule(L.LightningModule):
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         x = (batch["motion"] - self.mean) / self.std
         if self.cfg.noise_std > 0:
-            g = torch.Generator().manual_seed(int(np.random.SeedSequence(
-                [self.seed, self.global_step, self.global_rank]).generate_state(1)[0]))
+            g = step_generator(self.seed, self.global_step, self.global_rank)
             x = x + self.cfg.noise_std * torch.randn(x.shape, generator=g).to(x.device)
         _, logits = self.model(x)
         loss = F.cross_entropy(logits, batch["emotion"])

@@ -28,7 +28,7 @@ from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
 from emogesture.pipeline.conditions import window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.train.engine import AveragedWeightsMixin
+from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
 LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
 
@@ -116,10 +116,6 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         s = self.cfg.joint_scale
         return F.smooth_l1_loss(joints * s, target * s)
 
-    def _generator(self) -> torch.Generator:
-        seed = np.random.SeedSequence([self.seed, self.global_step, self.global_rank]).generate_state(1)[0]
-        return torch.Generator().manual_seed(int(seed))
-
     def conditions(self, batch: dict) -> tuple[list[torch.Tensor], torch.Tensor | None]:
         conds = list(batch["conditions"])
         if self.model.audio_ae is None:
@@ -129,7 +125,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         cfg, w = self.cfg, self.cfg.losses
-        g = self._generator()
+        g = step_generator(self.seed, self.global_step, self.global_rank)
         m = batch["motion"]
         b = m.shape[0]
         conds, audio_rec = self.conditions(batch)

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import lightning as L
-import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
@@ -20,7 +19,7 @@ from emogesture.data.datasets import SpeechQuadrupleDataset
 from emogesture.errors import ConfigError
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
-from emogesture.train.engine import AveragedWeightsMixin
+from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
 
 @dataclass
@@ -113,15 +112,13 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         fbank = batch["fbank"]
         inputs = fbank
         if self.cfg.augment:
-            g = torch.Generator().manual_seed(int(np.random.SeedSequence(
-                [self.seed, self.global_step, self.global_rank]).generate_state(1)[0]))
+            g = step_generator(self.seed, self.global_step, self.global_rank)
             b, k, t, f = fbank.shape
             inputs = augment_fbank(fbank.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
                                    self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
         emotion_inputs = None
         if self.cfg.emotion_scramble > 0:
-            g = torch.Generator().manual_seed(int(np.random.SeedSequence(
-                [self.seed, self.global_step, self.global_rank, 1]).generate_state(1)[0]))
+            g = step_generator(self.seed, self.global_step, self.global_rank, 1)
             b, k, t, f = inputs.shape
             flat = inputs.reshape(b * k, t, f).cpu()
             chosen = torch.rand(b * k, generator=g) < self.cfg.emotion_scramble_share
