@@ -8,7 +8,7 @@ import torch
 
 from emogesture.diffusion import (
     DiffusionConfig, add_noise, ddim_sample, draw_noise, make_ddim_scheduler, make_ddpm_scheduler,
-    make_generators, sample_timesteps,
+    make_generators, sample_timesteps, training_target,
 )
 from emogesture.errors import ConfigError
 from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
@@ -116,6 +116,26 @@ def test_add_noise_matches_forward_process(ddpm):
                                rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.parametrize("kind", ["epsilon", "sample", "v_prediction"])
+def test_training_target_by_prediction_type(kind):
+    ddpm = make_ddpm_scheduler(DiffusionConfig(prediction_type=kind))
+    z0, noise = torch.randn(2, 2, 256, generator=_gen(21))
+    t = torch.tensor([5, 900])
+    a = ddpm.alphas_cumprod[t][:, None]
+    want = {"epsilon": noise, "sample": z0, "v_prediction": a.sqrt() * noise - (1 - a).sqrt() * z0}[kind]
+    torch.testing.assert_close(training_target(ddpm, z0, noise, t), want, rtol=1e-5, atol=1e-6)
+    # the same DDIM loop then turns a perfect prediction into the clean latent
+    ddim = make_ddim_scheduler(DiffusionConfig(prediction_type=kind, set_alpha_to_one=True))
+    x0 = torch.randn(2, 256, generator=_gen(22))
+
+    def perfect(z_t, t, conditions):  # recovers the noise implied by z_t and x0, returns the target
+        a = ddim.alphas_cumprod[t][:, None]
+        eps = (z_t - a.sqrt() * x0) / (1 - a).sqrt()
+        return training_target(ddim, x0, eps, t)
+
+    torch.testing.assert_close(ddim_sample(perfect, ddim, (), _gen(23), batch_size=2), x0, rtol=1e-4, atol=1e-4)
+
+
 def test_sample_timesteps_and_noise_are_per_sample():
     t = sample_timesteps(_gen(5), 1000, 1000)
     assert t.dtype == torch.int64 and 0 <= t.min() and t.max() <= 999 and len(t.unique()) > 500
@@ -134,7 +154,9 @@ def test_denoiser_presets_and_parameter_counts():
     n = sum(p.numel() for p in LatentDenoiser(paper).parameters())
     t = sum(p.numel() for p in LatentDenoiser(DenoiserConfig.preset("tiny")).parameters())
     print(f"denoiser parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M")
-    assert 60e6 < n < 120e6 and t < 3e6
+    assert 60e6 < n < 120e6 and t < 4e6
+    with pytest.raises(ConfigError, match="bottleneck"):
+        DenoiserConfig(width=192, latent_dim=256)  # z_t could not pass through
 
 
 def test_denoiser_output_is_the_first_token(tiny):

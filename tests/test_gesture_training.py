@@ -96,6 +96,22 @@ def test_generation_is_seeded_and_batch_independent(trained):
     assert np.allclose(a, b, atol=1e-5) and not np.allclose(a, c)
 
 
+def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():
+    from emogesture.config import to_dict
+    from emogesture.motion import MotionFeatureSpec
+    from emogesture.train.gesture import GestureModule, GestureTrainConfig
+
+    assert GestureTrainConfig.preset("paper").model.diffusion.prediction_type == "epsilon"
+    cfg = GestureTrainConfig.preset("tiny", "no_prior")
+    assert cfg.model.diffusion.prediction_type == "sample" and cfg.prior_lr == 1e-4 and cfg.lr == 1e-3
+    cfg.model.vae.frames, cfg.model.vae.feature_dim = 30, 282
+    module = GestureModule(to_dict(cfg), [0.0] * 282, [1.0] * 282, to_dict(MotionFeatureSpec()))
+    groups = module.configure_optimizers().param_groups
+    prior = {id(p) for p in module.model.prior.parameters()}
+    assert [g["lr"] for g in groups] == [1e-3, 1e-4]
+    assert {id(p) for p in groups[1]["params"]} == prior and not prior & {id(p) for p in groups[0]["params"]}
+
+
 def test_edit_targets_are_seeded_and_never_the_own_emotion():
     emotion = np.arange(400) % len(EMOTIONS)
     t = edit_targets(emotion, seed=3)

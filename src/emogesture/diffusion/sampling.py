@@ -70,6 +70,21 @@ def add_noise(scheduler: Any, z0: torch.Tensor, noise: torch.Tensor, t: Any) -> 
     return scheduler.add_noise(z0, noise, _timesteps(t, z0.shape[0], z0.device))
 
 
+def training_target(scheduler: Any, z0: torch.Tensor, noise: torch.Tensor, t: Any) -> torch.Tensor:
+    """What the denoiser learns to output for ``z_t = add_noise(z0, noise, t)``, by the scheduler's
+    ``prediction_type``: ``"epsilon"`` -> the noise; ``"sample"`` -> ``z0``; ``"v_prediction"`` ->
+    ``v = sqrt(ᾱ_t)·noise − sqrt(1 − ᾱ_t)·z0``. All ``[B, D]``.
+    """
+    kind = scheduler.config.prediction_type
+    if kind == "epsilon":
+        return noise
+    if kind == "sample":
+        return z0
+    if kind == "v_prediction":
+        return scheduler.get_velocity(z0, noise, _timesteps(t, z0.shape[0], z0.device))
+    raise ValueError(f"unknown prediction_type {kind!r}")
+
+
 def ddim_sample(
     denoiser: Denoiser,
     scheduler: Any,
@@ -85,7 +100,8 @@ def ddim_sample(
     """Run the reverse diffusion from pure noise to a clean latent ``z0``.
 
     Args:
-        denoiser: ``denoiser(z_t [B, D], t [B], conditions) -> eps [B, D]`` (e.g. a ``LatentDenoiser``;
+        denoiser: ``denoiser(z_t [B, D], t [B], conditions) -> [B, D]``, the scheduler's prediction
+            (ε for the paper's ``prediction_type="epsilon"``; e.g. a ``LatentDenoiser``;
             its train/eval mode is the caller's business — use eval mode for reproducible samples).
         scheduler: a diffusers ``DDIMScheduler`` (see :func:`make_ddim_scheduler`); its ``timesteps``
             are used as set, unless ``num_inference_steps`` is given (then ``set_timesteps`` is called).
@@ -119,9 +135,9 @@ def ddim_sample(
     trajectory = [z]
     with nullcontext() if enable_grad else torch.no_grad():
         for t in scheduler.timesteps:
-            eps = denoiser(z, _timesteps(t, b, device), conditions)
+            out = denoiser(z, _timesteps(t, b, device), conditions)
             variance_noise = draw_noise(generator, b, latent_dim, device, dtype) if eta > 0 else None
-            z = scheduler.step(eps, t, z, eta=eta, variance_noise=variance_noise).prev_sample
+            z = scheduler.step(out, t, z, eta=eta, variance_noise=variance_noise).prev_sample
             if return_trajectory:
                 trajectory.append(z)
     if return_trajectory:

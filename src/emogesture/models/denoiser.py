@@ -3,7 +3,7 @@
 Tokens ``[z_t, SE(t), c, e, s]``, each projected to the model width (SE = sinusoidal timestep embedding
 followed by a two-layer MLP), pass through the same skip-transformer shape as the VAE encoder (learnable
 positional embedding in every attention layer); the FIRST output token, projected to ``latent_dim``, is
-the predicted noise ε̂. With ``num_conditions = 1`` the single latent ``m`` of the no-disentanglement
+the prediction: the noise ε̂ in the paper (the scheduler's ``prediction_type`` says what it is). With ``num_conditions = 1`` the single latent ``m`` of the no-disentanglement
 ablation replaces ``(c, e, s)``.
 """
 
@@ -41,6 +41,11 @@ class DenoiserConfig:
     def __post_init__(self) -> None:
         if min(self.latent_dim, self.cond_dim, self.num_conditions, self.time_embed_dim) < 1:
             raise ConfigError("denoiser: latent_dim, cond_dim, num_conditions and time_embed_dim must be ≥ 1")
+        if self.width < self.latent_dim:
+            # z_t enters and ε̂ leaves through one width-d token: a narrower width cannot even pass
+            # z_t through (at large t the ideal ε̂ is ≈ z_t), and sampling then drifts far off the latents.
+            raise ConfigError(f"denoiser: width {self.width} is below latent_dim {self.latent_dim}; "
+                              "the prediction would pass through a rank bottleneck")
         self.transformer()  # validates width/heads/layers/dropout
 
     def transformer(self) -> SkipTransformerConfig:
@@ -53,16 +58,17 @@ class DenoiserConfig:
 
     @classmethod
     def preset(cls, name: str, num_conditions: int = 3) -> "DenoiserConfig":
-        """``paper``: width 1024, 9 layers, 4 heads, ff 2048. ``tiny``: width 192, 5 layers, 4 heads, ff 384."""
+        """``paper``: width 1024, 9 layers, 4 heads, ff 2048. ``tiny``: width 256 (= latent_dim, the
+        narrowest width that does not bottleneck the prediction), 5 layers, 4 heads, ff 512."""
         if name == "paper":
             return cls(num_conditions=num_conditions)
         if name == "tiny":
-            return cls(width=192, layers=5, heads=4, ff_dim=384, num_conditions=num_conditions)
+            return cls(width=256, layers=5, heads=4, ff_dim=512, num_conditions=num_conditions)
         raise ConfigError(f"unknown denoiser preset {name!r}; known: paper, tiny")
 
 
 class LatentDenoiser(nn.Module):
-    """Δ(z_t, t, c, e, s) -> ε̂; see the module docstring."""
+    """Δ(z_t, t, c, e, s) -> ε̂ (or ẑ0 / v̂, by the scheduler's prediction type); see the module docstring."""
 
     def __init__(self, config: DenoiserConfig) -> None:
         super().__init__()
@@ -101,7 +107,8 @@ class LatentDenoiser(nn.Module):
         whole batch); ``conditions``: a sequence of ``num_conditions`` tensors ``[B, 256]`` —
         ``(content, emotion, style)`` (an ``AudioLatents`` works) or ``(m,)`` for the ablation.
 
-        Returns: predicted noise ``eps_hat [B, 256]`` read from the first output token.
+        Returns: the prediction ``[B, 256]`` read from the first output token (the noise ε̂ with the
+        paper's ε-prediction, ẑ0 with ``prediction_type="sample"``).
         """
         y = self.transformer(self.tokens(z_t, t, conditions), self.pos)
         return self.output(y[:, 0])

@@ -44,8 +44,21 @@ class GestureModelConfig:
 
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
+        """``paper``: SPEC §4 (ε-prediction). ``tiny``: the small VAE and denoiser, and the denoiser
+        predicts ẑ0 (``diffusion.prediction_type="sample"``) instead of ε.
+
+        Why ẑ0 for tiny (measured with the 900-step tiny VAE, a denoiser trained alone on its latents
+        for 1000 steps, generated emotion accuracy GA on held-out texts, GT 0.935): ε-prediction
+        reaches a noise loss of 0.12, yet its samples lie far from the latents (squared error to the
+        window's latent 12 per dimension, where the latents' variance is 0.4; GA 0.07), because at
+        t ≈ 1000 an ε error is multiplied by sqrt((1 − ᾱ_t) / ᾱ_t) ≈ 15 in the implied ẑ0; clipping
+        ẑ0 to [-1, 1] (the authors' released inference) keeps the samples on scale but GA stays at
+        chance. v-prediction gives GA 0.62 and ẑ0-prediction 0.73.
+        """
         n = 1 if variant == "no_audio" else 3
-        return cls(variant=variant, vae=MotionVAEConfig.preset(name), denoiser=DenoiserConfig.preset(name, n))
+        diffusion = DiffusionConfig(prediction_type="sample") if name == "tiny" else DiffusionConfig()
+        return cls(variant=variant, vae=MotionVAEConfig.preset(name), denoiser=DenoiserConfig.preset(name, n),
+                   diffusion=diffusion)
 
 
 class LinearMotionMap(nn.Module):

@@ -22,7 +22,7 @@ from emogesture.checkpoints import save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
-from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps
+from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps, training_target
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
@@ -50,6 +50,9 @@ class GestureTrainConfig:
     losses: GestureLossWeights = field(default_factory=GestureLossWeights)
     batch_size: int = 32
     lr: float = 1e-4
+    #: Learning rate of the motion prior (None = ``lr``); the tiny ``no_prior`` ablation's linear map
+    #: over a whole flattened window (300 × D inputs) needs a smaller one than the networks.
+    prior_lr: float | None = None
     weight_decay: float = 0.0
     align_ddim_steps: int = 50  # DDIM steps of the no-gradient sampling in step (3) (paper: 50)
     align_every: int = 1  # run step (3) every N steps (paper: every step)
@@ -69,6 +72,8 @@ class GestureTrainConfig:
         else:
             cfg.lr, cfg.align_ddim_steps, cfg.align_every = 1e-3, 10, 2
             cfg.ema_decay, cfg.joint_scale = 0.99, 100.0
+            if variant == "no_prior":
+                cfg.prior_lr = 1e-4
         return cfg
 
 
@@ -155,8 +160,8 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
             z0 = z.detach()
             noise = draw_noise(g, b, z0.shape[1]).to(z0)
             t = sample_timesteps(g, b, cfg.model.diffusion.num_train_timesteps).to(z0.device)
-            eps = self.model.denoiser(add_noise(self.ddpm, z0, noise, t), t, conds)
-            losses["ld"] = F.mse_loss(eps, noise)
+            pred = self.model.denoiser(add_noise(self.ddpm, z0, noise, t), t, conds)
+            losses["ld"] = F.mse_loss(pred, training_target(self.ddpm, z0, noise, t))
             if variant != "disjoint" and cfg.align_every > 0 and self.global_step % cfg.align_every == 0:
                 z_tilde = ddim_sample(self.model.denoiser, self.ddim, conds, g,
                                       num_inference_steps=cfg.align_ddim_steps)
@@ -171,8 +176,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         return total
 
     def configure_optimizers(self):
-        params = [p for p in self.model.parameters() if p.requires_grad]
-        return torch.optim.AdamW(params, lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
+        prior = {id(p) for p in self.model.prior.parameters()}
+        rest = [p for p in self.model.parameters() if p.requires_grad and id(p) not in prior]
+        groups = [{"params": rest}, {"params": [p for p in self.model.prior.parameters() if p.requires_grad],
+                                     "lr": self.cfg.lr if self.cfg.prior_lr is None else self.cfg.prior_lr}]
+        return torch.optim.AdamW(groups, lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
 
 
 class GestureDataModule(L.LightningDataModule):
