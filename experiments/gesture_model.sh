@@ -7,11 +7,13 @@
 # experiments/gesture_evaluation.sh (each is trained here when missing; both resume).
 # Two workers run side by side, one CPU thread each: joint then no_prior, and no_audio then disjoint.
 # Writes experiments/reports/gesture_model/ (gesture_models_test.{json,md}, Table-1 report, PNGs, times).
-# Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES]   (defaults: 900 adversarial)
+# Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES] [JOINT_STEPS]   (defaults: 900 adversarial 1200)
+# The ablations train STEPS steps; the joint model (ours) trains JOINT_STEPS (≤ 45 min on one thread).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 STEPS=${1:-900}
 SPEECH_LOSSES=${2:-adversarial}
+JOINT_STEPS=${3:-1200}
 source experiments/common.sh
 REPORT=experiments/reports/gesture_model
 SPEECH="$WORK/speech_$SPEECH_LOSSES"
@@ -21,13 +23,14 @@ SPEECH="$WORK/speech_$SPEECH_LOSSES"
 mkdir -p "$REPORT"
 
 train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, writes its wall time
-    local variant=$1 start
+    local variant=$1 start steps=$STEPS
+    [ "$variant" = joint ] && steps=$JOINT_STEPS
     start=$(date +%s)
     # disjoint: the first half of the steps trains the prior, the second half the denoiser
     OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
-        --out "$WORK/gesture_$variant" --steps "$STEPS" --checkpoint-every 200 --quiet \
+        --out "$WORK/gesture_$variant" --steps "$steps" --checkpoint-every 100 --quiet \
         --set "disjoint_prior_steps=$((STEPS / 2))"
-    echo "$variant: $(( $(date +%s) - start )) s for $STEPS steps (1 thread, beside another training)" \
+    echo "$variant: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside another training)" \
         > "$WORK/gesture_$variant.time"
 }
 queue() { for variant in "$@"; do train "$variant"; done; }  # one worker: its variants in turn

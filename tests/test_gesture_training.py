@@ -97,7 +97,8 @@ def test_generation_is_seeded_and_batch_independent(trained):
 
 
 def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():
-    from emogesture.config import to_dict
+    from emogesture.config import from_dict, to_dict
+    from emogesture.errors import ConfigError
     from emogesture.motion import MotionFeatureSpec
     from emogesture.train.gesture import GestureModule, GestureTrainConfig
 
@@ -110,6 +111,9 @@ def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():
     prior = {id(p) for p in module.model.prior.parameters()}
     assert [g["lr"] for g in groups] == [1e-3, 1e-4]
     assert {id(p) for p in groups[1]["params"]} == prior and not prior & {id(p) for p in groups[0]["params"]}
+    cfg.model.denoiser.width = 192  # narrower than the 256-d latent: refused for training
+    with pytest.raises(ConfigError, match="bottleneck"):
+        from_dict(GestureTrainConfig, to_dict(cfg))
 
 
 def test_edit_targets_are_seeded_and_never_the_own_emotion():

@@ -117,7 +117,8 @@ def ddim_sample(
 
     Returns: ``z0 [B, D]``, the last ``prev_sample`` (and the trajectory when asked). With the paper's
     ``set_alpha_to_one=False`` the last step lands on the noise level of t = 0 (ᾱ_0 = 1 − β_0), not on
-    a clean sample: even a perfect ε-predictor returns ``sqrt(ᾱ_0)·x0 + sqrt(1 − ᾱ_0)·ε`` (≈ 3 % noise).
+    a clean sample: even a perfect predictor (of any ``prediction_type``) returns
+    ``sqrt(ᾱ_0)·x0 + sqrt(1 − ᾱ_0)·ε`` (≈ 3 % noise).
     """
     if conditions:
         b, device, dtype = conditions[0].shape[0], conditions[0].device, conditions[0].dtype

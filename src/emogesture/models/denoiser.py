@@ -41,11 +41,6 @@ class DenoiserConfig:
     def __post_init__(self) -> None:
         if min(self.latent_dim, self.cond_dim, self.num_conditions, self.time_embed_dim) < 1:
             raise ConfigError("denoiser: latent_dim, cond_dim, num_conditions and time_embed_dim must be ≥ 1")
-        if self.width < self.latent_dim:
-            # z_t enters and ε̂ leaves through one width-d token: a narrower width cannot even pass
-            # z_t through (at large t the ideal ε̂ is ≈ z_t), and sampling then drifts far off the latents.
-            raise ConfigError(f"denoiser: width {self.width} is below latent_dim {self.latent_dim}; "
-                              "the prediction would pass through a rank bottleneck")
         self.transformer()  # validates width/heads/layers/dropout
 
     def transformer(self) -> SkipTransformerConfig:

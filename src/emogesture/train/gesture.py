@@ -2,7 +2,9 @@
 
 Each step: (1) prior forward on the motion m -> m̂: L_rec (smooth L1, features), L_Vrec (smooth L1,
 joint positions of the licence-free skeleton), L_KL; (2) z_m = P_E(m) without gradient, noised at a
-random t: L_LD = ||ε - Δ(z_t, t, c, e, s)||²; (3) without gradient, the full DDIM loop from noise
+random t: L_LD = ||target - Δ(z_t, t, c, e, s)||², target = ε in the paper (the noise; z_m or v by
+``model.diffusion.prediction_type``; the tiny preset regresses z_m, so its logged ``ld`` is in latent
+units and not comparable with ε-runs); (3) without gradient, the full DDIM loop from noise
 with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
 The audio model is frozen: c, e, s are computed once per window by the speech run and cached.
 """
@@ -72,6 +74,16 @@ class GestureTrainConfig:
         if self.ld_repeats < 1 or self.batch_size < 1 or self.align_ddim_steps < 1 or self.align_every < 0:
             raise ConfigError("gesture training: ld_repeats, batch_size and align_ddim_steps must be ≥ 1, "
                               "align_every ≥ 0")
+        if self.lr <= 0 or (self.prior_lr is not None and self.prior_lr <= 0):
+            raise ConfigError("gesture training: lr and prior_lr must be > 0 (prior_lr may be unset)")
+        den = self.model.denoiser
+        if den.width < den.latent_dim:
+            # z_t enters and the prediction leaves through one width-d token, so the prediction spans at
+            # most `width` of the latent's dimensions (for ε at large t even z_t itself cannot pass, as the
+            # ideal ε̂ is ≈ z_t); measured with ε: samples drift far off the latents.
+            # Checked here, for new trainings; older models of that shape still load and run.
+            raise ConfigError(f"gesture training: denoiser width {den.width} is below latent_dim {den.latent_dim}; "
+                              "its prediction would pass through a rank bottleneck")
 
     @classmethod
     def preset(cls, size: str = "tiny", variant: str = "joint") -> "GestureTrainConfig":
