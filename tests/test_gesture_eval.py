@@ -46,7 +46,8 @@ def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
     assert rows["other"]["FGD"] < 1e-3 and rows["other"]["SRGR"] == pytest.approx(rows["GT"]["SRGR"], abs=1e-6)
     assert rows["mean pose"]["FGD"] > 10 * max(rows["other"]["FGD"], 1e-3)
     assert rows["mean pose"]["Div"] < 1e-6 < rows["GT"]["Div"]
-    assert rows["mean pose"]["Jerk"] < 1e-6
+    assert rows["mean pose"]["Jerk"] < 1e-6 and rows["mean pose"]["Speed"] < 1e-6
+    assert rows["GT"]["Speed"] > 0.01
     md = (tmp_path / "report" / "gesture_test.md").read_text()
     assert "| other |" in md and "beat_sigma_s" in md
     assert (tmp_path / "report" / "gesture_test_other_emotion_confusion.png").read_bytes()[:4] == b"\x89PNG"

@@ -142,7 +142,7 @@ def test_seam_jumps_find_a_jump_at_a_seam():
 
 
 def test_checks_follow_the_thresholds():
-    row = dict(SRGR=1.0, BA=0.9, FGD=5.0, Div=10.0, GA=0.8, Jerk=1.0)
+    row = dict(SRGR=1.0, BA=0.9, FGD=5.0, Div=10.0, GA=0.8, Jerk=1.0, Speed=0.3)
     rows = {"GT": dict(row, FGD=0.0, GA=1.0, BA=1.0), "ours": row, "ours, emotion edit": dict(row, GA=0.4),
             "no prior": dict(row, FGD=6.0), "disjoint": dict(row, FGD=4.0), "GT, mismatched audio": dict(row, FGD=2.0)}
     recon = {"mean pose": {"joint_error_m": 0.1}, "ours": {"joint_error_m": 0.02}}

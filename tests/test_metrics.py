@@ -29,6 +29,8 @@ def test_defaults_match_metric_constants():
         M.srgr: {"delta": c["srgr_delta_m"], "sem_scale": c["srgr_sem_scale"]},
         M.jerk: {"fps": c["fps"]},
         M.wrist_jerk: {"fps": c["fps"], "wrist_joints": c["wrist_joints"]},
+        M.speed: {"fps": c["fps"]},
+        M.wrist_speed: {"fps": c["fps"], "wrist_joints": c["wrist_joints"]},
     }
     for fn, params in expect.items():
         sig = inspect.signature(fn)
@@ -236,6 +238,20 @@ def test_jerk_of_cubic_and_linear_trajectories():
     assert M.wrist_jerk(body) == pytest.approx(6 * np.mean(np.abs(a)), rel=1e-6)
     with pytest.raises(ValueError):
         M.jerk(np.zeros((3, 2, 3)))
+
+
+def test_speed_of_linear_trajectories():
+    tt = np.arange(40) / FPS
+    v = np.array([[0.3, -1.0, 2.0], [0.0, 0.0, 0.5]])  # m/s, one velocity per joint
+    x = tt[:, None, None] * v[None]
+    assert M.speed(x) == pytest.approx(np.linalg.norm(v, axis=1).mean(), rel=1e-9)
+    assert M.speed(np.zeros((5, 2, 3))) == 0.0
+    body = np.random.default_rng(1).normal(size=(40, 55, 3))
+    body[:, 20:22] = x
+    assert M.wrist_speed(body) == pytest.approx(np.linalg.norm(v, axis=1).mean(), rel=1e-9)
+    assert M.wrist_speed(body * 2) > M.wrist_speed(body)  # faster hands, higher speed
+    with pytest.raises(ValueError):
+        M.speed(np.zeros((1, 2, 3)))
 
 
 # ------------------------------------------------------------------ plots

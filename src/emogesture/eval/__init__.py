@@ -21,9 +21,11 @@ from emogesture.eval.metrics import (
     frechet_from_stats,
     gaussian_stats,
     jerk,
+    speed,
     motion_beats,
     srgr,
     wrist_jerk,
+    wrist_speed,
 )
 
 __all__ = [
@@ -40,8 +42,10 @@ __all__ = [
     "gaussian_stats",
     "gesture_accuracy",
     "jerk",
+    "speed",
     "motion_beats",
     "predictions",
     "srgr",
     "wrist_jerk",
+    "wrist_speed",
 ]

@@ -1,4 +1,4 @@
-"""``emogesture evaluate gesture``: paper Table 1 (SRGR, BA, FGD, Div, GA) plus wrist jerk.
+"""``emogesture evaluate gesture``: paper Table 1 (SRGR, BA, FGD, Div, GA) plus wrist jerk and speed.
 
 Every source is a set of motion windows aligned with one split of a windows cache. The extractor M
 embeds them (FGD, Div) and classifies their emotion (GA); forward kinematics on the licence-free
@@ -22,11 +22,13 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import SplitWindows, WindowsCache, open_cache
 from emogesture.errors import EmogestureError, OutputExistsError
 from emogesture.eval.classification import classification_report
-from emogesture.eval.metrics import METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk
+from emogesture.eval.metrics import (
+    METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk, wrist_speed,
+)
 from emogesture.eval.plots import save_confusion_matrix
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
 
-COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk")
+COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed")
 
 
 @dataclass
@@ -100,6 +102,7 @@ class GestureEvaluator:
             "Div": diversity(e.features, seed=seed),
             "GA": rep["accuracy"],
             "Jerk": float(np.mean([wrist_jerk(j, fps=self.fps) for j in e.joints])),
+            "Speed": float(np.mean([wrist_speed(j, fps=self.fps) for j in e.joints])),
         }
         return row, rep["confusion"]
 
@@ -120,7 +123,7 @@ def gesture_markdown(result: dict) -> str:
     lines += ["", f"FGD between two disjoint halves of the ground-truth takes: {result['gt_split_half_fgd']:.3f} "
               "(the noise floor of FGD on this split).",
               "SRGR, BA, GA, Div: higher is better (Div: closer to GT); FGD, Jerk: lower is better (Jerk: m/s³, "
-              "closer to GT).", "", f"Extractor: {result['extractor']}", "",
+              "closer to GT). Speed: mean wrist speed, m/s (closer to GT).", "", f"Extractor: {result['extractor']}", "",
               "Constants: " + json.dumps(result["constants"]), ""]
     return "\n".join(lines)
 

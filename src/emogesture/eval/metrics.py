@@ -1,7 +1,7 @@
 """Evaluation metrics of SPEC §8 as pure functions of numpy arrays.
 
 FGD (Fréchet distance of feature sets), Div (mean pairwise L2 distance), BA (beat align), SRGR
-(semantic-weighted joint recall) and jerk. Nothing here reads files or touches the global random
+(semantic-weighted joint recall), jerk and speed. Nothing here reads files or touches the global random
 state: randomness comes only from a ``np.random.Generator`` or an integer ``seed``. Every constant is a
 keyword parameter whose default is also listed in :data:`METRIC_CONSTANTS`, so a report can print them.
 """
@@ -210,23 +210,43 @@ def srgr(pred_joints: np.ndarray, gt_joints: np.ndarray, sem_scores: np.ndarray,
     return float(np.mean(hit * (s / sem_scale)[:, None]))
 
 
-# --------------------------------------------------------------------------- jerk
+# --------------------------------------------------------------------------- jerk and speed
+def _derivative_magnitude(positions: np.ndarray, order: int, fps: float) -> float:
+    """Mean Euclidean norm of the ``order``-th forward difference along time times ``fps**order``."""
+    x = np.asarray(positions, dtype=np.float64)
+    if x.ndim < 2 or x.shape[-1] != 3 or x.shape[0] < order + 1:
+        raise ValueError(f"positions must be [T, ..., 3] with T >= {order + 1}, got shape {x.shape}")
+    d = np.diff(x, n=order, axis=0) * float(fps) ** order
+    return float(np.linalg.norm(d, axis=-1).mean())
+
+
 def jerk(positions: np.ndarray, fps: float = _C["fps"]) -> float:
     """Mean magnitude (m/s^3) of the third time derivative of ``positions`` ``[T, J, 3]`` (or ``[T, 3]``).
 
     Third forward difference along time times ``fps**3`` (exact for cubic trajectories), Euclidean norm
     over the last axis, mean over the ``T-3`` difference frames and the joints. Needs ``T >= 4``.
     """
-    x = np.asarray(positions, dtype=np.float64)
-    if x.ndim < 2 or x.shape[-1] != 3 or x.shape[0] < 4:
-        raise ValueError(f"positions must be [T, ..., 3] with T >= 4, got shape {x.shape}")
-    d3 = np.diff(x, n=3, axis=0) * float(fps) ** 3
-    return float(np.linalg.norm(d3, axis=-1).mean())
+    return _derivative_magnitude(positions, 3, fps)
+
+
+def speed(positions: np.ndarray, fps: float = _C["fps"]) -> float:
+    """Mean speed (m/s) of ``positions`` ``[T, J, 3]`` (or ``[T, 3]``): first forward difference times
+    ``fps``, Euclidean norm, mean over the ``T-1`` frames and the joints. Needs ``T >= 2``."""
+    return _derivative_magnitude(positions, 1, fps)
+
+
+def _wrists(joints: np.ndarray, wrist_joints: Sequence[int]) -> np.ndarray:
+    x = np.asarray(joints)
+    if x.ndim != 3:
+        raise ValueError(f"joints must be [T, J, 3], got shape {x.shape}")
+    return x[:, list(wrist_joints)]
 
 
 def wrist_jerk(joints: np.ndarray, fps: float = _C["fps"], wrist_joints: Sequence[int] = WRIST_JOINTS) -> float:
     """:func:`jerk` of the wrists (SMPL-X 20, 21) of ``joints`` ``[T, 55, 3]``."""
-    x = np.asarray(joints)
-    if x.ndim != 3:
-        raise ValueError(f"joints must be [T, J, 3], got shape {x.shape}")
-    return jerk(x[:, list(wrist_joints)], fps=fps)
+    return jerk(_wrists(joints, wrist_joints), fps=fps)
+
+
+def wrist_speed(joints: np.ndarray, fps: float = _C["fps"], wrist_joints: Sequence[int] = WRIST_JOINTS) -> float:
+    """:func:`speed` of the wrists (SMPL-X 20, 21) of ``joints`` ``[T, 55, 3]``: how much the hands move."""
+    return speed(_wrists(joints, wrist_joints), fps=fps)
