@@ -6,7 +6,9 @@ scheduler's ``prediction_type`` says (ε, ẑ0 or v). ``diffusers`` is imported 
 only when a scheduler is built.
 """
 
-from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, make_generators, sample_timesteps, training_target
+from emogesture.diffusion.sampling import (
+    add_noise, ddim_sample, draw_noise, make_generators, sample_timesteps, training_target,
+)
 from emogesture.diffusion.schedulers import DiffusionConfig, make_ddim_scheduler, make_ddpm_scheduler
 
 __all__ = [

@@ -123,7 +123,8 @@ def gesture_markdown(result: dict) -> str:
     lines += ["", f"FGD between two disjoint halves of the ground-truth takes: {result['gt_split_half_fgd']:.3f} "
               "(the noise floor of FGD on this split).",
               "SRGR, BA, GA, Div: higher is better (Div: closer to GT); FGD, Jerk: lower is better (Jerk: m/s³, "
-              "closer to GT). Speed: mean wrist speed, m/s (closer to GT).", "", f"Extractor: {result['extractor']}", "",
+              "closer to GT). Speed: mean wrist speed, m/s (closer to GT).", "",
+              f"Extractor: {result['extractor']}", "",
               "Constants: " + json.dumps(result["constants"]), ""]
     return "\n".join(lines)
 

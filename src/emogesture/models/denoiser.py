@@ -3,8 +3,8 @@
 Tokens ``[z_t, SE(t), c, e, s]``, each projected to the model width (SE = sinusoidal timestep embedding
 followed by a two-layer MLP), pass through the same skip-transformer shape as the VAE encoder (learnable
 positional embedding in every attention layer); the FIRST output token, projected to ``latent_dim``, is
-the prediction: the noise ε̂ in the paper (the scheduler's ``prediction_type`` says what it is). With ``num_conditions = 1`` the single latent ``m`` of the no-disentanglement
-ablation replaces ``(c, e, s)``.
+the prediction: the noise ε̂ in the paper (the scheduler's ``prediction_type`` says what it is). With
+``num_conditions = 1`` the single latent ``m`` of the no-disentanglement ablation replaces ``(c, e, s)``.
 """
 
 from __future__ import annotations

@@ -82,8 +82,8 @@ class GestureTrainConfig:
             # most `width` of the latent's dimensions (for ε at large t even z_t itself cannot pass, as the
             # ideal ε̂ is ≈ z_t); measured with ε: samples drift far off the latents.
             # Checked here, for new trainings; older models of that shape still load and run.
-            raise ConfigError(f"gesture training: denoiser width {den.width} is below latent_dim {den.latent_dim}; "
-                              "its prediction would pass through a rank bottleneck")
+            raise ConfigError(f"gesture training: denoiser width {den.width} is below latent_dim "
+                              f"{den.latent_dim}; its prediction would pass through a rank bottleneck")
 
     @classmethod
     def preset(cls, size: str = "tiny", variant: str = "joint") -> "GestureTrainConfig":
@@ -199,10 +199,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         return total
 
     def configure_optimizers(self):
-        prior = {id(p) for p in self.model.prior.parameters()}
-        rest = [p for p in self.model.parameters() if p.requires_grad and id(p) not in prior]
-        groups = [{"params": rest}, {"params": [p for p in self.model.prior.parameters() if p.requires_grad],
-                                     "lr": self.cfg.lr if self.cfg.prior_lr is None else self.cfg.prior_lr}]
+        prior = [p for p in self.model.prior.parameters() if p.requires_grad]
+        in_prior = {id(p) for p in prior}
+        rest = [p for p in self.model.parameters() if p.requires_grad and id(p) not in in_prior]
+        prior_lr = self.cfg.lr if self.cfg.prior_lr is None else self.cfg.prior_lr
+        groups = [{"params": rest}, {"params": prior, "lr": prior_lr}]
         return torch.optim.AdamW(groups, lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
 
 
