@@ -5,7 +5,8 @@
 # reconstruction error, emotion edits and a 65-s long-audio seam check).
 # Needs the speech model of experiments/speech_disentanglement.sh and the extractor of
 # experiments/gesture_evaluation.sh (each is trained here when missing; both resume).
-# Two workers run side by side, one CPU thread each: joint then no_prior, and no_audio then disjoint.
+# Two workers run side by side, one CPU thread each: joint then disjoint, and no_audio then no_prior
+# (about an hour each).
 # Writes experiments/reports/gesture_model/ (gesture_models_test.{json,md}, Table-1 report, PNGs, times).
 # Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES] [JOINT_STEPS]   (defaults: 900 adversarial 1200)
 # The ablations train STEPS steps; the joint model (ours) trains JOINT_STEPS (≤ 45 min on one thread).
@@ -34,7 +35,7 @@ train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, write
         > "$WORK/gesture_$variant.time"
 }
 queue() { for variant in "$@"; do train "$variant"; done; }  # one worker: its variants in turn
-queue joint no_prior & queue no_audio disjoint & wait
+queue joint disjoint & queue no_audio no_prior & wait
 cat "$WORK"/gesture_{joint,disjoint,no_prior,no_audio}.time | tee "$REPORT/training_time.txt"
 
 $EG evaluate gesture --data "$CACHE" --extractor "$WORK/extractor" --split test --out "$REPORT" --overwrite \

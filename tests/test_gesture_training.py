@@ -23,7 +23,8 @@ from helpers import cli, make_root
 
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
 SMALL = ("--set", "batch_size=4", "--set", "align_ddim_steps=2", "--set", "align_every=1",
-         "--set", "disjoint_prior_steps=2", "--set", "model.diffusion.num_inference_steps=3")
+         "--set", "disjoint_prior_steps=2", "--set", "prior_warmup_steps=2",
+         "--set", "model.diffusion.num_inference_steps=3")
 
 
 @pytest.fixture(scope="module")
@@ -75,6 +76,8 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     assert {"GT", "mean pose", "ours", "ours, emotion edit", "disjoint", "no prior", "no audio model"} <= set(rows)
     assert rows["ours"]["FGD"] > 0 and np.isfinite(rows["ours"]["GA"])
     assert r["long_audio"]["frames"] == r["long_audio"]["expected_frames"] == 900
+    truth = r["long_audio"]["ground_truth"]  # the seam check applied to the takes' own motion
+    assert truth["takes"] >= 1 and truth["seam_jumps"] > 0 and 0 <= truth["seam_share_above_p99"] <= 1
     assert set(r["prior_reconstruction"]) == {"mean pose", "ours", "disjoint", "no audio model"}
     assert "FGD / FGD(no prior) < 1" in r["checks"] and "GA / GA(GT) >= 0.7" in r["checks"]
     md = (tmp_path / "r" / "gesture_models_test.md").read_text()
@@ -105,7 +108,7 @@ def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():
     assert GestureTrainConfig.preset("paper").model.diffusion.prediction_type == "epsilon"
     cfg = GestureTrainConfig.preset("tiny", "no_prior")
     assert cfg.model.diffusion.prediction_type == "sample" and cfg.prior_lr == 1e-4 and cfg.lr == 1e-3
-    cfg.model.vae.frames, cfg.model.vae.feature_dim = 30, 282
+    cfg.model.vae.frames, cfg.model.vae.feature_dim = 60, 282  # the tiny prior reads 48 cosines
     module = GestureModule(to_dict(cfg), [0.0] * 282, [1.0] * 282, to_dict(MotionFeatureSpec()))
     groups = module.configure_optimizers().param_groups
     prior = {id(p) for p in module.model.prior.parameters()}
@@ -137,6 +140,7 @@ def test_seam_jumps_find_a_jump_at_a_seam():
     r = seam_jumps(broken, starts, fps)
     assert r["max_seam_jump_m"] == pytest.approx(abs(0.1 + joints[270, 0, 0] - joints[269, 0, 0]), abs=1e-9)
     assert r["max_seam_jump_m"] > r["p99_inside_jump_m"]
+    assert r["seam_share_above_p99"] > 0 and r["seam_jumps"] + r["inside_jumps"] == 599
     with pytest.raises(Exception, match="too short"):
         seam_jumps(joints, [0.0], fps)
 

@@ -5,8 +5,9 @@ overlap by 2 s); each window is generated on its own and the overlaps are cross-
 rotation features (a raised-cosine ramp, re-orthonormalised when turned into rotations). Two
 independent samples can disagree in the overlap, and a cross-fade between poses far apart is a fast
 movement; so each window after the first is drawn ``seam_candidates`` times (default 4, each from its
-own seed) and the candidate closest to the already chosen previous window over their overlap (mean
-squared feature difference) is kept. Output length is ``round(duration * 30)`` frames.
+own seed) and the candidate whose cross-fade with the already chosen previous window moves least is
+kept: the largest frame-to-frame joint displacement (licence-free skeleton) over the overlap and the
+frames on either side. Output length is ``round(duration * 30)`` frames.
 
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
@@ -15,7 +16,7 @@ from a second audio (window ``i`` takes that audio's window ``i mod n``), or the
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -27,7 +28,7 @@ from emogesture.audio import check_speech, load_audio
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.motion import MotionFeatureSpec, features_to_poses
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices, features_to_poses
 from emogesture.pipeline.conditions import generate_from_conditions
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
@@ -45,6 +46,11 @@ class EditRequest:
     style_from: np.ndarray | None = None  # [n, 256]
 
 
+def crossfade_ramp(overlap: int) -> np.ndarray:
+    """The incoming window's weights ``[overlap]`` over an overlap (raised cosine from 0 to 1)."""
+    return 0.5 - 0.5 * np.cos(np.pi * (np.arange(overlap) + 0.5) / overlap)
+
+
 def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.ndarray:
     """Per-window frame weights ``[W, window]`` that sum to 1 over overlapping windows.
 
@@ -55,16 +61,26 @@ def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.nda
     for i in range(1, len(starts)):
         overlap = starts[i - 1] + window - starts[i]
         if overlap > 0:
-            ramp = 0.5 - 0.5 * np.cos(np.pi * (np.arange(overlap) + 0.5) / overlap)
+            ramp = crossfade_ramp(overlap)
             w[i, :overlap] *= ramp
             w[i - 1, window - overlap :] *= 1.0 - ramp
     return w
 
 
-def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int]) -> np.ndarray:
-    """Per window, its candidates ``[K_i, T, D]`` (a ``[W, K, T, D]`` array works) -> windows ``[W, T, D]``:
-    candidate 0 for the first window, then for each window the candidate with the smallest mean squared
-    difference to the chosen previous window over their overlap (candidate 0 when windows do not overlap)."""
+def feature_jumps(frames: np.ndarray) -> np.ndarray:
+    """Frame-to-frame change ``[K, L, D] -> [K, L - 1]`` (Euclidean norm over the features)."""
+    return np.linalg.norm(np.diff(frames, axis=1), axis=-1)
+
+
+def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int],
+                           jumps: Callable[[np.ndarray], np.ndarray] = feature_jumps) -> np.ndarray:
+    """Per window, its candidates ``[K_i, T, D]`` (a ``[W, K, T, D]`` array works) -> windows ``[W, T, D]``.
+
+    Candidate 0 for the first window; then, window by window, the candidate whose cross-fade with the
+    chosen previous window has the smallest largest jump. The cross-fade is taken over the overlap plus
+    the frame on either side, and ``jumps`` maps those frames ``[K, L, D]`` to per-frame jumps
+    ``[K, L - 1]``. Candidate 0 is used when the windows do not overlap.
+    """
     chosen = [candidates[0][0]]
     for i in range(1, len(candidates)):
         t = candidates[i].shape[1]
@@ -72,9 +88,15 @@ def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int]) 
         if overlap <= 0 or len(candidates[i]) == 1:
             chosen.append(candidates[i][0])
             continue
-        previous = chosen[-1][t - overlap :]
-        error = ((candidates[i][:, :overlap] - previous[None]) ** 2).mean(axis=(1, 2))
-        chosen.append(candidates[i][int(np.argmin(error))])
+        k = len(candidates[i])
+        ramp = crossfade_ramp(overlap)[None, :, None]
+        faded = (1.0 - ramp) * chosen[-1][None, t - overlap :] + ramp * candidates[i][:, :overlap]
+        parts = [faded]
+        if overlap < t:  # the frame before the overlap (previous window) and after it (the candidate)
+            parts = [np.broadcast_to(chosen[-1][None, t - overlap - 1 : t - overlap], (k, 1, faded.shape[2])),
+                     faded, candidates[i][:, overlap : overlap + 1]]
+        cost = jumps(np.concatenate(parts, axis=1)).max(axis=1)
+        chosen.append(candidates[i][int(np.argmin(cost))])
     return np.stack(chosen)
 
 
@@ -107,6 +129,7 @@ class GesturePipeline:
         self.std = np.asarray(extra["motion_std"], np.float32)
         self.spec = from_dict(MotionFeatureSpec, extra["features"])
         self.fps = int(extra.get("fps", 30))
+        self.body = SkeletonBody()  # joint positions for choosing seam candidates
 
     @classmethod
     def from_run(cls, run: str | PathLike[str], speech_run: str | PathLike[str] | None = None,
@@ -125,6 +148,14 @@ class GesturePipeline:
         wave, sr = load_audio(path)
         check_speech(wave, sr, path)
         return wave
+
+    def joint_jumps(self, features: np.ndarray) -> np.ndarray:
+        """Raw motion features ``[K, L, D]`` -> largest joint displacement between frames ``[K, L - 1]`` (m)."""
+        with torch.no_grad():
+            rotations, trans = features_to_matrices(torch.from_numpy(np.ascontiguousarray(features, np.float32)),
+                                                    self.spec)
+            joints = self.body.forward_matrices(rotations, trans).numpy()
+        return np.linalg.norm(np.diff(joints, axis=1), axis=-1).max(axis=-1)
 
     def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0) -> tuple[EncodedWindows, list[float]]:
         return self.speech.encode(waveform, 16000, hop_seconds)
@@ -176,7 +207,7 @@ class GesturePipeline:
                      for i, c in pairs]
             drawn = self.generate_windows(picked, seeds)
             candidates = [drawn[:1], *drawn[1:].reshape(n - 1, k_cand, *drawn.shape[1:])]
-            feats = stitch(choose_seam_candidates(candidates, starts), starts, num_frames)
+            feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
             trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
             out.append(SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps))

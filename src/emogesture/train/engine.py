@@ -182,7 +182,9 @@ def make_trainer(run_dir: Path, settings: RunSettings, export, extra_callbacks: 
         callbacks.append(TQDMProgressBar(refresh_rate=max(1, settings.log_every // 4)))
     strategy: Any = "auto"
     if settings.devices > 1:
-        strategy = "ddp"
+        # a training phase may leave a module out (the gesture model's prior-only steps); DDP then
+        # skips its parameters instead of waiting for their gradients
+        strategy = "ddp_find_unused_parameters_true"
     return L.Trainer(
         default_root_dir=run_dir,
         max_steps=settings.max_steps,

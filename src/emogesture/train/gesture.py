@@ -63,6 +63,9 @@ class GestureTrainConfig:
     #: to the prior, so on a CPU its extra samples cost little and it learns several times faster.
     ld_repeats: int = 1
     disjoint_prior_steps: int = 500  # variant "disjoint": prior-only steps before the denoiser-only phase
+    #: Other variants: prior-only steps before joint training starts (paper: 0). The denoiser and the
+    #: alignment then start on settled latents instead of the random ones of an untrained encoder.
+    prior_warmup_steps: int = 0
     #: Exponential moving average of the weights (0 = off); the exported model is the average.
     ema_decay: float = 0.0
     #: Joint positions enter L_Vrec and L_Valign in metres × this (smooth L1 is quadratic below 1 unit):
@@ -74,6 +77,8 @@ class GestureTrainConfig:
         if self.ld_repeats < 1 or self.batch_size < 1 or self.align_ddim_steps < 1 or self.align_every < 0:
             raise ConfigError("gesture training: ld_repeats, batch_size and align_ddim_steps must be ≥ 1, "
                               "align_every ≥ 0")
+        if self.prior_warmup_steps < 0 or self.disjoint_prior_steps < 0:
+            raise ConfigError("gesture training: prior_warmup_steps and disjoint_prior_steps must be ≥ 0")
         if self.lr <= 0 or (self.prior_lr is not None and self.prior_lr <= 0):
             raise ConfigError("gesture training: lr and prior_lr must be > 0 (prior_lr may be unset)")
         den = self.model.denoiser
@@ -95,6 +100,8 @@ class GestureTrainConfig:
             cfg.ema_decay, cfg.joint_scale, cfg.ld_repeats = 0.99, 100.0, 4
             if variant == "no_prior":
                 cfg.prior_lr = 1e-4
+            elif variant in ("joint", "no_audio"):
+                cfg.prior_warmup_steps = 450
         return cfg
 
 
@@ -156,8 +163,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         b = m.shape[0]
         conds, audio_rec = self.conditions(batch)
         variant = cfg.model.variant
-        phase_prior = variant != "disjoint" or self.global_step < cfg.disjoint_prior_steps
-        phase_denoiser = variant != "disjoint" or self.global_step >= cfg.disjoint_prior_steps
+        if variant == "disjoint":
+            phase_prior = self.global_step < cfg.disjoint_prior_steps
+            phase_denoiser = not phase_prior
+        else:
+            phase_prior, phase_denoiser = True, self.global_step >= cfg.prior_warmup_steps
         losses: dict[str, torch.Tensor] = {}
         prior = self.model.prior
         gt: list[torch.Tensor] = []
