@@ -133,10 +133,14 @@ def test_positional_embedding_enters_every_attention_layer():
 
 def test_paper_parameter_count():
     n = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("paper")).parameters())
-    t = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("tiny")).parameters())
-    print(f"motion VAE parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M")
+    tiny = MotionVAE(MotionVAEConfig.preset("tiny"))
+    t = sum(p.numel() for p in tiny.parameters())
+    path = sum(p.numel() for name, p in tiny.named_parameters() if name.startswith("low_frequency"))
+    print(f"motion VAE parameters: paper {n / 1e6:.2f} M, tiny {t / 1e6:.2f} M ({path / 1e6:.2f} M in its path)")
     assert 12e6 < n < 25e6  # 9+9 layers of width 256, ff 1024 (+ cross-attention in the decoder)
-    assert t < 2e6
+    # the tiny path's two Linears: 48 cosines × width 64 -> 256, and 256 -> 48 cosines × 282 features
+    assert path == (48 * 64 * 256 + 256) + (256 * 48 * 282 + 48 * 282)
+    assert t - path < 0.5e6
 
 
 def test_gradients_reach_every_parameter():
