@@ -38,7 +38,7 @@ from emogesture.pipeline.conditions import (
     window_conditions,
     window_seeds,
 )
-from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline
+from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline, largest_joint_jumps
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 FPS = 30
@@ -78,11 +78,6 @@ def long_audio(cache: WindowsCache, split: str, seconds: float) -> tuple[np.ndar
     raise EmogestureError(f"{cache.root}: the {split} split holds less than {seconds} s of audio")
 
 
-def frame_jumps(joints: np.ndarray) -> np.ndarray:
-    """``joints [T, 55, 3]`` -> the largest joint displacement between frames ``k`` and ``k+1``, ``[T-1]``."""
-    return np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(axis=1)
-
-
 def seam_mask(num_jumps: int, starts_s: list[float], fps: int = FPS) -> np.ndarray:
     """Which of ``num_jumps`` frame-to-frame jumps touch a cross-faded overlap of two neighbouring
     10-s windows starting at ``starts_s`` (from the frame before the overlap to its last frame)."""
@@ -105,7 +100,7 @@ def seam_statistics(seam: np.ndarray, inside: np.ndarray) -> dict:
 def seam_jumps(joints: np.ndarray, starts_s: list[float], fps: int = FPS) -> dict:
     """Frame-to-frame jumps of a stitched sequence ``joints [T, 55, 3]``: seams vs inside windows (see
     :func:`seam_mask` and :func:`seam_statistics`)."""
-    jump = frame_jumps(joints)
+    jump = largest_joint_jumps(joints)
     seam = seam_mask(len(jump), starts_s, fps)
     if not seam.any() or seam.all():
         raise EmogestureError("the audio is too short for window seams (needs more than one window)")
@@ -132,7 +127,7 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
             continue
         with torch.no_grad():
             rotations, trans = features_to_matrices(torch.from_numpy(motion), spec)
-            jump = frame_jumps(body.forward_matrices(rotations, trans).numpy())
+            jump = largest_joint_jumps(body.forward_matrices(rotations, trans).numpy())
         seam = seam_mask(len(jump), starts, fps)
         seam_parts.append(jump[seam])
         inside_parts.append(jump[~seam])

@@ -67,6 +67,11 @@ def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.nda
     return w
 
 
+def largest_joint_jumps(joints: np.ndarray) -> np.ndarray:
+    """Joint positions ``[..., T, J, 3]`` -> the largest joint displacement between frames ``[..., T - 1]``."""
+    return np.linalg.norm(np.diff(joints, axis=-3), axis=-1).max(axis=-1)
+
+
 def feature_jumps(frames: np.ndarray) -> np.ndarray:
     """Frame-to-frame change ``[K, L, D] -> [K, L - 1]`` (Euclidean norm over the features)."""
     return np.linalg.norm(np.diff(frames, axis=1), axis=-1)
@@ -154,8 +159,7 @@ class GesturePipeline:
         with torch.no_grad():
             rotations, trans = features_to_matrices(torch.from_numpy(np.ascontiguousarray(features, np.float32)),
                                                     self.spec)
-            joints = self.body.forward_matrices(rotations, trans).numpy()
-        return np.linalg.norm(np.diff(joints, axis=1), axis=-1).max(axis=-1)
+            return largest_joint_jumps(self.body.forward_matrices(rotations, trans).numpy())
 
     def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0) -> tuple[EncodedWindows, list[float]]:
         return self.speech.encode(waveform, 16000, hop_seconds)
