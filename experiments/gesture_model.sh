@@ -9,7 +9,7 @@
 # (about an hour each).
 # Writes experiments/reports/gesture_model/ (gesture_models_test.{json,md}, Table-1 report, PNGs, times).
 # Usage: experiments/gesture_model.sh [STEPS] [SPEECH_LOSSES] [JOINT_STEPS]   (defaults: 900 adversarial 1200)
-# The ablations train STEPS steps; the joint model (ours) trains JOINT_STEPS (≤ 45 min on one thread).
+# Ours (joint) and disjoint train JOINT_STEPS (ours ≤ 45 min on one thread); no prior and no audio train STEPS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 STEPS=${1:-900}
@@ -25,12 +25,12 @@ mkdir -p "$REPORT"
 
 train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, writes its wall time
     local variant=$1 start steps=$STEPS
-    [ "$variant" = joint ] && steps=$JOINT_STEPS
+    if [ "$variant" = joint ] || [ "$variant" = disjoint ]; then steps=$JOINT_STEPS; fi
     start=$(date +%s)
     # disjoint: the first half of the steps trains the prior, the second half the denoiser
     OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
         --out "$WORK/gesture_$variant" --steps "$steps" --checkpoint-every 100 --quiet \
-        --set "disjoint_prior_steps=$((STEPS / 2))"
+        --set "disjoint_prior_steps=$((steps / 2))"
     echo "$variant: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside another training)" \
         > "$WORK/gesture_$variant.time"
 }

@@ -108,6 +108,7 @@ def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():
     assert GestureTrainConfig.preset("paper").model.diffusion.prediction_type == "epsilon"
     cfg = GestureTrainConfig.preset("tiny", "no_prior")
     assert cfg.model.diffusion.prediction_type == "sample" and cfg.prior_lr == 1e-4 and cfg.lr == 1e-3
+    assert cfg.losses.align == cfg.losses.valign == 0.1 and GestureTrainConfig.preset("paper").losses.align == 1.0
     cfg.model.vae.frames, cfg.model.vae.feature_dim = 60, 282  # the tiny prior reads 48 cosines
     module = GestureModule(to_dict(cfg), [0.0] * 282, [1.0] * 282, to_dict(MotionFeatureSpec()))
     groups = module.configure_optimizers().param_groups
