@@ -26,7 +26,7 @@ from emogesture.eval.metrics import (
     METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk, wrist_speed,
 )
 from emogesture.eval.plots import save_confusion_matrix
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
+from emogesture.motion import MotionFeatureSpec, SkeletonBody
 
 COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed")
 
@@ -80,8 +80,7 @@ class GestureEvaluator:
             f, lg = self.extractor.model((x - self.mean) / self.std)
             feats.append(f.numpy())
             logits.append(lg.numpy())
-            rotations, trans = features_to_matrices(x, self.spec)
-            joints.append(self.body.forward_matrices(rotations, trans).numpy())
+            joints.append(self.body.forward_features(x, self.spec).numpy())
         return Embedded(np.concatenate(feats), np.concatenate(logits), np.concatenate(joints))
 
     def score(self, motion: np.ndarray, labels: np.ndarray | None = None, seed: int = 0) -> tuple[dict, np.ndarray]:

@@ -30,7 +30,7 @@ from emogesture.eval.gesture import GestureEvaluator, evaluate_gesture, gesture_
 from emogesture.eval.metrics import UPPER_BODY_JOINTS
 from emogesture.eval import sources as src
 from emogesture.config import from_dict
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
+from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.pipeline.conditions import (
     emotion_label_edit,
     generate_from_conditions,
@@ -119,15 +119,15 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
     spec = from_dict(MotionFeatureSpec, cache.manifest["config"]["features"])
     body = SkeletonBody()
     seam_parts, inside_parts = [], []
+    window_takes = np.asarray(windows.takes)
     for take in takes:
-        idx = sorted(np.flatnonzero(np.asarray(windows.takes) == take), key=lambda i: windows.start_s[i])
+        idx = sorted(np.flatnonzero(window_takes == take), key=lambda i: windows.start_s[i])
         motion = np.concatenate([np.asarray(windows.motion[i], np.float32) for i in idx])
         starts = window_starts(len(motion) / fps, WINDOW_SECONDS, hop_seconds).tolist()
         if len(starts) < 2:
             continue
         with torch.no_grad():
-            rotations, trans = features_to_matrices(torch.from_numpy(motion), spec)
-            jump = largest_joint_jumps(body.forward_matrices(rotations, trans).numpy())
+            jump = largest_joint_jumps(body.forward_features(torch.from_numpy(motion), spec).numpy())
         seam = seam_mask(len(jump), starts, fps)
         seam_parts.append(jump[seam])
         inside_parts.append(jump[~seam])

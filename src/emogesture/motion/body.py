@@ -14,6 +14,7 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError, InputFileError
+from emogesture.motion.features import MotionFeatureSpec, features_to_matrices
 from emogesture.motion.rotations import axis_angle_to_matrix
 from emogesture.motion.skeleton import PARENTS, joint_depths, rest_joints, rest_offsets
 from emogesture.types import NUM_JOINTS
@@ -57,6 +58,10 @@ class SkeletonBody(torch.nn.Module):
         ``trans [B, T, 3]`` -> joint positions ``[B, T, 55, 3]`` in metres."""
         _check_inputs(poses, trans, (NUM_JOINTS, 3))
         return self.forward_matrices(axis_angle_to_matrix(poses), trans)
+
+    def forward_features(self, features: torch.Tensor, spec: MotionFeatureSpec | None = None) -> torch.Tensor:
+        """Raw motion features ``[..., T, D]`` -> joint positions ``[..., T, 55, 3]`` (differentiable)."""
+        return self.forward_matrices(*features_to_matrices(features, spec))
 
     def forward_matrices(self, rotations: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
         """Local rotation matrices ``[..., 55, 3, 3]`` and optional ``trans [..., 3]``

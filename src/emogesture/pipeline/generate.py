@@ -28,7 +28,7 @@ from emogesture.audio import check_speech, load_audio
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices, features_to_poses
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import generate_from_conditions
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
@@ -157,9 +157,8 @@ class GesturePipeline:
     def joint_jumps(self, features: np.ndarray) -> np.ndarray:
         """Raw motion features ``[K, L, D]`` -> largest joint displacement between frames ``[K, L - 1]`` (m)."""
         with torch.no_grad():
-            rotations, trans = features_to_matrices(torch.from_numpy(np.ascontiguousarray(features, np.float32)),
-                                                    self.spec)
-            return largest_joint_jumps(self.body.forward_matrices(rotations, trans).numpy())
+            joints = self.body.forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), self.spec)
+        return largest_joint_jumps(joints.numpy())
 
     def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0) -> tuple[EncodedWindows, list[float]]:
         return self.speech.encode(waveform, 16000, hop_seconds)

@@ -28,7 +28,7 @@ from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sa
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
 from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_matrices
+from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.pipeline.conditions import window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
@@ -144,8 +144,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
 
     def joints(self, normalised: torch.Tensor) -> torch.Tensor:
         """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""
-        rotations, trans = features_to_matrices(normalised * self.std + self.mean, self.spec)
-        return self.body.forward_matrices(rotations, trans)
+        return self.body.forward_features(normalised * self.std + self.mean, self.spec)
 
     def joint_loss(self, joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """Smooth L1 between joint positions ``[B, T, 55, 3]`` in units of ``1 / joint_scale`` metres."""
