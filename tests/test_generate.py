@@ -3,6 +3,7 @@
 Uses small untrained models written to disk (the behaviour checked here does not depend on training).
 """
 
+import itertools
 import subprocess
 import sys
 
@@ -11,6 +12,7 @@ import pytest
 import soundfile as sf
 import torch
 
+from emogesture.audio import window_starts
 from emogesture.checkpoints import save_model
 from emogesture.config import to_dict
 from emogesture.data.beat import EMOTIONS
@@ -18,7 +20,9 @@ from emogesture.data.prepare import PrepareConfig
 from emogesture.errors import EmogestureError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
-from emogesture.pipeline.generate import EditRequest, GesturePipeline, choose_seam_candidates, stitch
+from emogesture.eval.gesture_models import seam_jumps
+from emogesture.motion import SkeletonBody
+from emogesture.pipeline.generate import EditRequest, GesturePipeline, choose_seam_candidates, seam_costs, stitch
 
 
 @pytest.fixture(scope="module")
@@ -94,25 +98,38 @@ def test_stitch_crossfades_without_jumps():
     np.testing.assert_allclose(out[:200], windows[0][:200])  # outside overlaps a window is copied exactly
 
 
-def test_seam_candidates_continue_the_previous_window(runs):
-    # window 1's candidate 2 starts where window 0 ends; window 2's candidate 1 continues that one
-    T, starts = 10, [0, 8, 16]
-    cand = np.full((3, 3, T, 1), 5.0)
-    cand[0, 0, :, 0] = np.arange(T)
-    cand[1, 2, :, 0] = 8 + np.arange(T)
-    cand[1, 0, :, 0] = 0.0
-    cand[2, 1, :, 0] = 16 + np.arange(T)
-    chosen = choose_seam_candidates(cand, starts)
-    assert np.array_equal(chosen[:, 0, 0], [0.0, 8.0, 16.0])
+def test_seam_candidates_avoid_the_worst_seam(runs):
+    # window 0's candidate 0 strokes where window 1 fades in: choosing window by window from candidate 0
+    # cannot avoid it, choosing the whole path does (candidate 1 everywhere: no jump at all)
+    T, starts = 10, [0, 8]
+    cand = np.zeros((2, 2, T, 1))
+    cand[0, 0, 8:, 0] = 3.0
+    cand[1, 0] = 1.0
+    assert np.array_equal(choose_seam_candidates(cand, starts), cand[:, 1])
     assert np.array_equal(choose_seam_candidates(cand[:, :1], starts), cand[:, 0])
-    # through the pipeline: one candidate is the old behaviour, more candidates never enlarge the
-    # mismatch between neighbouring windows and stay deterministic
+    # on random candidates the chosen path's worst seam is the smallest over every path (brute force)
+    rng = np.random.default_rng(0)
+    cand = rng.normal(size=(4, 3, T, 2)).cumsum(axis=2)
+    starts = [0, 7, 14, 21]
+
+    def worst(windows):
+        return max(seam_costs(windows[i - 1][None], windows[i][None], starts[i - 1] + T - starts[i]).item()
+                   for i in range(1, len(windows)))
+
+    best = min(worst([cand[i, k] for i, k in enumerate(path)]) for path in itertools.product(range(3), repeat=4))
+    assert worst(choose_seam_candidates(cand, starts)) == pytest.approx(best)
+    # through the pipeline: more candidates never enlarge the worst seam (candidate 0 of every window is
+    # the one-candidate draw) and stay deterministic
     pipe = GesturePipeline.from_run(runs / "gesture")
     wave = pipe.load_speech(runs / "long.wav")[: 30 * 16000]
     one = pipe.generate(wave, seed=1, seam_candidates=1)[0]
     four = pipe.generate(wave, seed=1, seam_candidates=4)[0]
     assert np.array_equal(four.poses, pipe.generate(wave, seed=1, seam_candidates=4)[0].poses)
-    np.testing.assert_allclose(one.poses[:200], four.poses[:200])  # window 0 is candidate 0 either way
+    starts_s = window_starts(30.0, 10.0, 8.0).tolist()
+    with torch.no_grad():
+        jumps = [seam_jumps(SkeletonBody()(torch.from_numpy(q.poses), torch.from_numpy(q.trans)).numpy(), starts_s)
+                 for q in (one, four)]
+    assert jumps[1]["max_seam_jump_m"] <= jumps[0]["max_seam_jump_m"] + 1e-4
     with pytest.raises(EmogestureError, match="seam_candidates"):
         pipe.generate(wave, seam_candidates=0)
 

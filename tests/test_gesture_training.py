@@ -78,10 +78,13 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     assert r["long_audio"]["frames"] == r["long_audio"]["expected_frames"] == 900
     truth = r["long_audio"]["ground_truth"]  # the seam check applied to the takes' own motion
     assert truth["takes"] >= 1 and truth["seam_jumps"] > 0 and 0 <= truth["seam_share_above_p99"] <= 1
+    whole = r["long_audio"]["every_take"]  # every take generated whole, next to its ground truth
+    assert whole["takes"] == whole["ground_truth"]["takes"] >= 1 and whole["seam_jumps"] > 0
+    assert len(r["long_audio"]["emotions"]) == len(r["long_audio"]["takes"])
     assert set(r["prior_reconstruction"]) == {"mean pose", "ours", "disjoint", "no audio model"}
     assert "FGD / FGD(no prior) < 1" in r["checks"] and "GA / GA(GT) >= 0.7" in r["checks"]
     md = (tmp_path / "r" / "gesture_models_test.md").read_text()
-    assert "## Checks" in md and "| ours, emotion edit |" in md
+    assert "## Checks" in md and "| ours, emotion edit |" in md and "generated whole" in md
     # outputs are never replaced silently
     again = subprocess.run(cli(*args), capture_output=True, text=True)
     assert again.returncode != 0 and "--overwrite" in again.stderr and len(again.stderr.strip().splitlines()) == 1

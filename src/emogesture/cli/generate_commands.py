@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
     p.add_argument("--seam-candidates", type=int, default=4,
-                   help="samples drawn per window to continue the previous window best (default 4; 1 = off)")
+                   help="samples drawn per window, one kept per window so the worst seam moves least (default 4; 1 = off)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.set_defaults(func=run_generate)
 

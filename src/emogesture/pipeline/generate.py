@@ -4,10 +4,11 @@ Audio of any length is covered by 10-s windows every ``hop_seconds`` (default 8 
 overlap by 2 s); each window is generated on its own and the overlaps are cross-faded in the 6D
 rotation features (a raised-cosine ramp, re-orthonormalised when turned into rotations). Two
 independent samples can disagree in the overlap, and a cross-fade between poses far apart is a fast
-movement; so each window after the first is drawn ``seam_candidates`` times (default 4, each from its
-own seed) and the candidate whose cross-fade with the already chosen previous window moves least is
-kept: the largest frame-to-frame joint displacement (licence-free skeleton) over the overlap and the
-frames on either side. Output length is ``round(duration * 30)`` frames.
+movement; so every window is drawn ``seam_candidates`` times (default 4, each from its own seed) and
+one candidate per window is kept, chosen together over the whole audio: the sequence whose worst seam
+moves least, a seam's cost being the largest frame-to-frame joint displacement (licence-free skeleton)
+of its cross-fade, over the overlap and the frames on either side. Output length is
+``round(duration * 30)`` frames.
 
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
@@ -77,32 +78,55 @@ def feature_jumps(frames: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.diff(frames, axis=1), axis=-1)
 
 
+def seam_costs(previous: np.ndarray, incoming: np.ndarray, overlap: int,
+               jumps: Callable[[np.ndarray], np.ndarray] = feature_jumps) -> np.ndarray:
+    """The cost of each seam between candidates ``previous [Ka, T, D]`` and ``incoming [Kb, T, D]``
+    overlapping by ``overlap`` frames -> ``[Ka, Kb]``: the largest jump of their cross-fade, taken over
+    the overlap plus the frame on either side (``jumps`` maps frames ``[K, L, D]`` to jumps ``[K, L - 1]``).
+    """
+    ka, kb, t, d = len(previous), len(incoming), previous.shape[1], previous.shape[2]
+    ramp = crossfade_ramp(overlap)[None, None, :, None]
+    faded = (1.0 - ramp) * previous[:, None, t - overlap:] + ramp * incoming[None, :, :overlap]
+    parts = [faded]
+    if overlap < t:  # the frame before the overlap (previous window) and after it (the incoming one)
+        parts = [np.broadcast_to(previous[:, None, t - overlap - 1: t - overlap], (ka, kb, 1, d)), faded,
+                 np.broadcast_to(incoming[None, :, overlap: overlap + 1], (ka, kb, 1, d))]
+    frames = np.concatenate(parts, axis=2)
+    return jumps(frames.reshape(ka * kb, *frames.shape[2:])).max(axis=1).reshape(ka, kb)
+
+
 def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int],
                            jumps: Callable[[np.ndarray], np.ndarray] = feature_jumps) -> np.ndarray:
     """Per window, its candidates ``[K_i, T, D]`` (a ``[W, K, T, D]`` array works) -> windows ``[W, T, D]``.
 
-    Candidate 0 for the first window; then, window by window, the candidate whose cross-fade with the
-    chosen previous window has the smallest largest jump. The cross-fade is taken over the overlap plus
-    the frame on either side, and ``jumps`` maps those frames ``[K, L, D]`` to per-frame jumps
-    ``[K, L - 1]``. Candidate 0 is used when the windows do not overlap.
+    One candidate per window, chosen together (a bottleneck Viterbi path): the sequence whose largest
+    seam cost (:func:`seam_costs`, the largest jump of a cross-fade) is smallest, and among those the
+    one with the smallest sum of seam costs. Unlike choosing window
+    by window, this can also pick the earlier window of a seam, e.g. one that does not stroke where the
+    next one fades in. Ties go to the lower candidate index; with one candidate per window, or no
+    overlaps, candidate 0 everywhere.
     """
-    chosen = [candidates[0][0]]
-    for i in range(1, len(candidates)):
+    n = len(candidates)
+    # per candidate of the current window, the best path ending there: its worst seam and its cost sum
+    worst, total = np.zeros(len(candidates[0])), np.zeros(len(candidates[0]))
+    back = []
+    for i in range(1, n):
         t = candidates[i].shape[1]
         overlap = starts[i - 1] + t - starts[i]
-        if overlap <= 0 or len(candidates[i]) == 1:
-            chosen.append(candidates[i][0])
-            continue
-        k = len(candidates[i])
-        ramp = crossfade_ramp(overlap)[None, :, None]
-        faded = (1.0 - ramp) * chosen[-1][None, t - overlap :] + ramp * candidates[i][:, :overlap]
-        parts = [faded]
-        if overlap < t:  # the frame before the overlap (previous window) and after it (the candidate)
-            parts = [np.broadcast_to(chosen[-1][None, t - overlap - 1 : t - overlap], (k, 1, faded.shape[2])),
-                     faded, candidates[i][:, overlap : overlap + 1]]
-        cost = jumps(np.concatenate(parts, axis=1)).max(axis=1)
-        chosen.append(candidates[i][int(np.argmin(cost))])
-    return np.stack(chosen)
+        if overlap <= 0:
+            cost = np.zeros((len(candidates[i - 1]), len(candidates[i])))
+        else:
+            cost = seam_costs(candidates[i - 1], candidates[i], overlap, jumps)
+        path_worst, path_total = np.maximum(worst[:, None], cost), total[:, None] + cost
+        best = np.array([np.lexsort((path_total[:, b], path_worst[:, b]))[0] for b in range(cost.shape[1])])
+        back.append(best)
+        cols = np.arange(cost.shape[1])
+        worst, total = path_worst[best, cols], path_total[best, cols]
+    pick = [int(np.lexsort((total, worst))[0])]
+    for b in reversed(back):
+        pick.append(int(b[pick[-1]]))
+    pick.reverse()
+    return np.stack([candidates[i][k] for i, k in enumerate(pick)])
 
 
 def stitch(windows: np.ndarray, starts: list[int], num_frames: int) -> np.ndarray:
@@ -189,8 +213,8 @@ class GesturePipeline:
                  hop_seconds: float = 8.0, seam_candidates: int = 4) -> list[SMPLXSequence]:
         """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
 
-        ``seam_candidates``: samples drawn per window (after the first) to pick the one that continues
-        the previous window best (see the module docstring); 1 = every window independent.
+        ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
+        worst seam moves least (see the module docstring); 1 = every window independent.
         """
         if seam_candidates < 1:
             raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
@@ -199,17 +223,16 @@ class GesturePipeline:
         num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
         n, k_cand = len(starts), seam_candidates
-        # (window, candidate) pairs to draw: the first window needs one draw, the others k_cand
-        pairs = [(0, 0)] + [(i, c) for i in range(1, n) for c in range(k_cand)]
+        pairs = [(i, c) for i in range(n) for c in range(k_cand)]  # (window, candidate) draws
         rows = np.array([i for i, _ in pairs])
         picked = [c[rows] for c in conds]
         out = []
         for k in range(samples):
-            # candidate 0 of window i keeps the seed it had before candidates existed
+            # candidate 0 of window i keeps the seed it has with one candidate
             seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                      for i, c in pairs]
             drawn = self.generate_windows(picked, seeds)
-            candidates = [drawn[:1], *drawn[1:].reshape(n - 1, k_cand, *drawn.shape[1:])]
+            candidates = drawn.reshape(n, k_cand, *drawn.shape[1:])
             feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
             trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
