@@ -46,6 +46,25 @@ def test_tiny_output_shapes(tiny):
     assert not torch.allclose(other.emotion, enc.emotion) and not torch.allclose(other.emotion_logits, enc.emotion_logits)
 
 
+def test_emotion_speaker_context_starts_neutral_and_reads_the_style_detached(tiny):
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=5)
+    cfg.emotion_speaker_context = True
+    torch.manual_seed(0)
+    model = SpeechDisentangler(cfg).eval()
+    missing = model.load_state_dict(tiny.state_dict(), strict=False).missing_keys
+    assert missing and all(k.startswith("emotion_context.") for k in missing)
+    x = torch.randn(2, 1024, 128, generator=_gen(3))
+    # zero at initialisation: the same outputs as the model without it
+    assert torch.allclose(model.encode(x).emotion, tiny.encode(x).emotion, atol=1e-6)
+    torch.nn.init.normal_(model.emotion_context[1].weight, std=0.1)
+    enc = model.encode(x)
+    assert not torch.allclose(enc.emotion, tiny.encode(x).emotion, atol=1e-4)
+    # the style changes the emotion latent through the context, but emotion losses never train the style encoder
+    enc.emotion_logits.sum().backward()
+    assert model.emotion_context[1].weight.grad.abs().sum() > 0
+    assert all(p.grad is None for p in model.style_encoder.parameters())
+
+
 def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
     cfg = ViTConfig(width=8, depth=1, heads=2)  # paper patching (16, stride 10), narrow for speed
     assert cfg.grid == (12, 101) and cfg.num_patches == 1212

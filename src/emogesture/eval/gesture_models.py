@@ -293,8 +293,9 @@ def gesture_models_markdown(r: dict) -> str:
         lines.append(f"| {name} | {v['joint_error_m']:.4f} | {v['joint_error_m'] / base:.3f} |")
     if r["long_audio"]:
         la = r["long_audio"]
+        emotions = f" ({', '.join(la['emotions'])}: a window across a take boundary mixes two)" if "emotions" in la else ""
         lines += ["", "## Long audio", "",
-                  f"{la['seconds']:.1f} s of the split's takes back to back -> {la['frames']} frames "
+                  f"{la['seconds']:.1f} s of the split's takes back to back{emotions} -> {la['frames']} frames "
                   f"(expected {la['expected_frames']}); {la['windows']} windows every {la['hop_seconds']} s. "
                   f"Largest frame-to-frame joint jump at the seams {la['max_seam_jump_m'] * 1000:.1f} mm "
                   f"({la['seam_jumps']} jumps) vs the 99th percentile inside windows "

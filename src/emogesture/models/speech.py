@@ -40,6 +40,10 @@ class SpeechModelConfig:
     decoder_time_stride: int = 8
     decoder_memory_tokens: int = 8
     dropout: float = 0.1
+    #: An extension (paper: off): the emotion encoder also reads the window's style latent (detached,
+    #: LayerNorm + Linear, zero at initialisation, added to its [CLS] input), so it can judge emotion
+    #: relative to the speaker's own voice.
+    emotion_speaker_context: bool = False
 
     def __post_init__(self) -> None:
         if self.fusion_width % self.fusion_heads or self.decoder_width % self.decoder_heads:
@@ -115,12 +119,14 @@ class SpeechEncoder(nn.Module):
         if self.classifier is not None:
             init_transformer_weights(self.classifier)
 
-    def forward(self, fbank: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+    def forward(self, fbank: torch.Tensor, context: torch.Tensor | None = None
+                ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """``fbank [B, 1024, 128] -> (latent [B, 256], logits [B, classes] or None)``.
 
         The logits come from the mean of the [CLS] and [DIST] outputs (only [CLS] if not distilled).
+        ``context [B, W]``: see :meth:`AudioViT.forward`.
         """
-        tokens = self.vit(fbank)
+        tokens = self.vit(fbank, context)
         k = self.vit.config.num_prefix
         latent = self.latent_head(tokens[:, k:].mean(dim=1))
         logits = self.classifier(tokens[:, :k].mean(dim=1)) if self.classifier is not None else None
@@ -199,6 +205,12 @@ class SpeechDisentangler(nn.Module):
         self.emotion_adversary = nn.Linear(config.latent_dim, config.num_emotions)
         self.emotion_from_latent = nn.Linear(config.latent_dim, config.num_emotions)
         self.speaker_from_latent = nn.Linear(config.latent_dim, config.num_speakers)
+        self.emotion_context = None
+        if config.emotion_speaker_context:
+            self.emotion_context = nn.Sequential(nn.LayerNorm(config.latent_dim, eps=LN_EPS),
+                                                 nn.Linear(config.latent_dim, config.encoder.width))
+            nn.init.zeros_(self.emotion_context[1].weight)
+            nn.init.zeros_(self.emotion_context[1].bias)
 
     def encode(self, fbank: torch.Tensor, emotion_fbank: torch.Tensor | None = None) -> SpeechEncoding:
         """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``.
@@ -207,8 +219,9 @@ class SpeechDisentangler(nn.Module):
         augmentation); default ``fbank``.
         """
         content, _ = self.content_encoder(fbank)
-        emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank)
         style, speaker_logits = self.style_encoder(fbank)
+        context = None if self.emotion_context is None else self.emotion_context(style.detach())
+        emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank, context)
         return SpeechEncoding(content, emotion, style, emotion_logits, speaker_logits)
 
     def decode(self, content: torch.Tensor, emotion: torch.Tensor, style: torch.Tensor) -> torch.Tensor:

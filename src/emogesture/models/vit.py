@@ -240,8 +240,12 @@ class AudioViT(nn.Module):
             if p is not None:
                 nn.init.trunc_normal_(p, std=0.02)
 
-    def forward(self, fbank: torch.Tensor) -> torch.Tensor:
-        """``fbank [B, 1024, 128] -> tokens [B, 2 + 1212, W]`` ([CLS], [DIST], then the patches)."""
+    def forward(self, fbank: torch.Tensor, context: torch.Tensor | None = None) -> torch.Tensor:
+        """``fbank [B, 1024, 128] -> tokens [B, 2 + 1212, W]`` ([CLS], [DIST], then the patches).
+
+        ``context [B, W]``: optional per-sample vector added to the [CLS] token's input, through which
+        every token can attend to it.
+        """
         c = self.config
         if fbank.dim() != 3 or fbank.shape[1:] != (c.input_frames, c.input_bins):
             raise ValueError(
@@ -249,7 +253,7 @@ class AudioViT(nn.Module):
             )
         x = self.patch_embed(fbank)
         b = x.shape[0]
-        prefix = [self.cls_token.expand(b, -1, -1)]
+        prefix = [self.cls_token.expand(b, -1, -1) if context is None else self.cls_token + context[:, None]]
         if self.dist_token is not None:
             prefix.append(self.dist_token.expand(b, -1, -1))
         x = self.pos_drop(torch.cat(prefix + [x], dim=1) + self.pos_embed)
