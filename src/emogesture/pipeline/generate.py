@@ -101,10 +101,9 @@ def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int],
 
     One candidate per window, chosen together (a bottleneck Viterbi path): the sequence whose largest
     seam cost (:func:`seam_costs`, the largest jump of a cross-fade) is smallest, and among those the
-    one with the smallest sum of seam costs. Unlike choosing window
-    by window, this can also pick the earlier window of a seam, e.g. one that does not stroke where the
-    next one fades in. Ties go to the lower candidate index; with one candidate per window, or no
-    overlaps, candidate 0 everywhere.
+    one with the smallest sum of seam costs. Unlike choosing window by window, this can also pick the
+    earlier window of a seam, e.g. one that does not stroke where the next one fades in. Ties go to the
+    lower candidate index; with one candidate per window, or no overlaps, candidate 0 everywhere.
     """
     n = len(candidates)
     # per candidate of the current window, the best path ending there: its worst seam and its cost sum
