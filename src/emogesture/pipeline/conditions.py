@@ -69,7 +69,7 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
     (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
-    the model's configuration.
+    the model's configuration, and its ``diffusion.eta`` is used.
     """
     model = gesture.model.eval()
     device = next(model.parameters()).device
@@ -87,7 +87,7 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
         if model.audio_ae is not None:
             conds = [model.audio_ae(conds[0])[0]]
         z = ddim_sample(model.denoiser, scheduler, conds, make_generators(seeds[i : i + batch_size]),
-                        num_inference_steps=steps)
+                        num_inference_steps=steps, eta=cfg.diffusion.eta)
         out.append(model.prior.decode(z, frames=cfg.vae.frames).cpu().numpy())
     return np.concatenate(out) * std + mean
 

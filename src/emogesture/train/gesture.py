@@ -199,7 +199,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
             losses["ld"] = F.mse_loss(pred, training_target(self.ddpm, z0r, noise, t))
             if variant != "disjoint" and cfg.align_every > 0 and self.global_step % cfg.align_every == 0:
                 z_tilde = ddim_sample(self.model.denoiser, self.ddim, conds, g,
-                                      num_inference_steps=cfg.align_ddim_steps)
+                                      num_inference_steps=cfg.align_ddim_steps, eta=cfg.model.diffusion.eta)
                 m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1])
                 losses["align"] = F.smooth_l1_loss(m_tilde, m)
                 losses["valign"] = self.joint_loss(self.joints(m_tilde), joints_gt())
