@@ -141,7 +141,7 @@ def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int,
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
     seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds)[0]
     with torch.no_grad():
-        joints = SkeletonBody()(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+        joints = pipe.body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
     return joints, window_starts(len(wave) / 16000, WINDOW_SECONDS, hop_seconds).tolist()
 
 
