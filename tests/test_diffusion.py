@@ -250,3 +250,46 @@ def test_ddim_loop_with_an_oracle_recovers_x0():
     eps_t = (noise - a_t.sqrt() * x0) / (1 - a_t).sqrt()
     torch.testing.assert_close(got, a_0.sqrt() * x0 + (1 - a_0).sqrt() * eps_t, rtol=1e-4, atol=1e-4)
     assert (got - x0).abs().max() < 0.2
+
+
+# --- residual noise ----------------------------------------------------------------------------------------
+
+
+def test_shrunk_covariance_matches_the_ledoit_wolf_formula():
+    from emogesture.diffusion.residual import residual_factor, shrunk_covariance
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(40, 6)) @ rng.normal(size=(6, 6))
+    cov, delta = shrunk_covariance(x)
+    xc = x - x.mean(0)
+    s = xc.T @ xc / len(x)
+    mu = np.trace(s) / 6
+    d2 = ((s - mu * np.eye(6)) ** 2).sum()
+    b2 = sum(((np.outer(r, r) - s) ** 2).sum() for r in xc) / len(x) ** 2
+    want = min(b2, d2) / d2
+    assert delta == pytest.approx(want) and 0 < delta < 1
+    np.testing.assert_allclose(cov, want * mu * np.eye(6) + (1 - want) * s, rtol=1e-10)
+    # many samples of a correlated Gaussian: little shrinkage; fewer samples than dimensions: still positive definite
+    assert shrunk_covariance(rng.normal(size=(5000, 6)) @ rng.normal(size=(6, 6)))[1] < 0.05
+    few = rng.normal(size=(10, 32))
+    L = residual_factor(few)
+    assert L.shape == (32, 32) and np.allclose(L, np.tril(L)) and np.all(np.diag(L) > 0)
+    with pytest.raises(ValueError, match="residuals"):
+        shrunk_covariance(np.zeros((1, 4)))
+
+
+def test_residual_noise_is_seeded_per_sample_and_has_the_calibrated_covariance():
+    from emogesture.diffusion.residual import add_residual_noise
+
+    L = torch.tensor([[1.0, 0.0], [0.5, 0.2]])
+    z = torch.zeros(2, 2)
+    a = add_residual_noise(z, L, make_generators([3, 4]))
+    alone = add_residual_noise(z[:1], L, make_generators([3]))
+    torch.testing.assert_close(a[:1], alone)
+    assert add_residual_noise(z, L, make_generators([3, 4]), scale=0.0) is z
+    many = add_residual_noise(torch.zeros(20000, 2), L, _gen(0), scale=2.0)
+    torch.testing.assert_close(torch.cov(many.T), 4 * L @ L.T, atol=0.08, rtol=0.05)
+    with pytest.raises(ValueError, match="residual factor"):
+        add_residual_noise(z, torch.eye(3), _gen(0))
+    with pytest.raises(ConfigError, match="residual_scale"):
+        DiffusionConfig(residual_scale=-1.0)

@@ -31,8 +31,8 @@ SMALL = ("--set", "batch_size=4", "--set", "align_ddim_steps=2", "--set", "align
 def trained(tmp_path_factory):
     d = tmp_path_factory.mktemp("gesture")
     names = make_root(d / "root", speakers=(1, 2), takes=(1, 2, 3, 65, 66, 67))
-    write_split_csv(d / "root" / "train_test_split.csv",
-                    {n: "test" if n.split("_")[3] in ("3", "67") else "train" for n in names})
+    split_of = {"3": "test", "67": "test", "2": "val"}  # val: the held-out windows of the residual calibration
+    write_split_csv(d / "root" / "train_test_split.csv", {n: split_of.get(n.split("_")[3], "train") for n in names})
     prepare(d / "root", d / "cache", progress=False)
     cache = open_cache(d / "cache")
     cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
@@ -108,6 +108,46 @@ def test_generation_is_seeded_and_batch_independent(trained):
     finally:
         model.config.diffusion.eta = 0.0
     assert np.allclose(d, e, atol=1e-5) and not np.allclose(a, d)
+
+
+def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
+    from emogesture.checkpoints import _sha256, model_paths
+    from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
+    from safetensors.torch import load_file, save_file
+
+    val_windows = len(open_cache(trained / "cache").split("val"))
+    for variant in VARIANTS:
+        model = load_model(trained / variant, "gesture")
+        stats = model.extra["residual_calibration"]
+        assert stats["split"] == "val" and stats["windows"] == val_windows and stats["step"] == 4, variant
+        assert model.model.calibrated and model.config.diffusion.residual_scale == 1.0
+    model = load_model(trained / "joint", "gesture")
+    rng = np.random.default_rng(1)
+    conds = [rng.normal(size=(3, 256)).astype(np.float32) for _ in range(3)]
+    plain = generate_from_conditions(model, conds, window_seeds(0, 3), residual=False)
+    noisy = generate_from_conditions(model, conds, window_seeds(0, 3))
+    assert not np.allclose(plain, noisy)
+    # `calibrate gesture` writes a calibrated copy (never over an existing model) ...
+    args = ["calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache", "--out", tmp_path / "cal",
+            "--seed", 3, "--scale", 0.5]
+    out = subprocess.run(cli(*args), capture_output=True, text=True)
+    assert out.returncode == 0 and f"{val_windows} val windows" in out.stdout, out.stderr[-2000:]
+    copy = load_model(tmp_path / "cal", "gesture")
+    assert copy.config.diffusion.residual_scale == 0.5 and copy.extra["residual_calibration"]["seed"] == 3
+    again = subprocess.run(cli(*args), capture_output=True, text=True)
+    assert again.returncode != 0 and "--overwrite" in again.stderr
+    # ... and a model file from before calibration existed loads uncalibrated: no residual noise
+    weights, meta_path = model_paths(tmp_path / "cal")
+    state = load_file(str(weights))
+    del state["latent_residual_tril"]
+    save_file(state, str(weights))
+    meta = json.loads(meta_path.read_text())
+    meta["weights_sha256"] = _sha256(weights)
+    meta_path.write_text(json.dumps(meta))
+    old = load_model(tmp_path / "cal", "gesture")
+    assert not old.model.calibrated
+    np.testing.assert_allclose(generate_from_conditions(old, conds, window_seeds(0, 3)),
+                               generate_from_conditions(old, conds, window_seeds(0, 3), residual=False))
 
 
 def test_tiny_presets_predict_z0_and_no_prior_has_its_own_prior_lr():

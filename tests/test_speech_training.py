@@ -115,3 +115,32 @@ def test_train_splits_concatenate_and_never_take_the_test_split(cache):
     assert concat_splits(c, ["train"]).fbank is not None and len(concat_splits(c, ["train"])) == len(train)
     with pytest.raises(ConfigError, match="test split"):
         SpeechDataModule(cache, 2, 8, 0, splits=("train", "test"))
+
+
+def test_content_use_sees_whether_the_decoder_reads_the_content_latent():
+    from types import SimpleNamespace
+
+    import torch
+
+    from emogesture.eval.speech import content_use
+
+    fbank = np.random.default_rng(0).normal(size=(5, 64, 8)).astype(np.float32)
+    fbank[:, ::2] += 1.0  # timing the time-averaged spectrum cannot have
+    fbank += np.arange(5, dtype=np.float32)[:, None, None]  # windows that differ
+
+    def encode(x):  # content = the window's level, emotion and style = nothing
+        level = x.mean(dim=(1, 2))[:, None].expand(-1, 4)
+        return SimpleNamespace(content=level, emotion=torch.zeros_like(level), style=torch.zeros_like(level))
+
+    def model(reads_content: bool):
+        def decode(c, e, s):
+            out = c[:, :1, None].expand(-1, 64, 8) if reads_content else torch.zeros(len(c), 64, 8)
+            return out + e[:, :1, None]
+        return SimpleNamespace(model=SimpleNamespace(encode=encode, decode=decode), device="cpu")
+
+    use = content_use(model(True), SimpleNamespace(fbank=fbank), seed=0, batch_size=2)
+    assert use["time_mean"] == pytest.approx(np.abs(fbank - fbank.mean(1, keepdims=True)).mean(), rel=1e-5)
+    assert use["self"] == pytest.approx(use["time_mean"], rel=0.05)  # the window level is its time mean, nearly
+    assert use["content_shuffled"] > use["self"] + 0.5  # another window's level is off by at least 1
+    use = content_use(model(False), SimpleNamespace(fbank=fbank), seed=0, batch_size=2)
+    assert use["content_shuffled"] == use["self"]

@@ -180,6 +180,7 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
     except (SafetensorError, OSError) as e:
         raise InputFileError(weights, f"corrupt weights file ({e})")
     missing, unexpected = model.load_state_dict(state, strict=False)
+    missing = [k for k in missing if k not in getattr(model, "optional_state_keys", ())]
     if missing or unexpected:
         raise InputFileError(
             weights, f"weights do not fit the stored config (missing {list(missing)[:3]}, unexpected {list(unexpected)[:3]})"

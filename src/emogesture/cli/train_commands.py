@@ -46,6 +46,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     _engine_args(p)
     p.set_defaults(func=run_train_gesture)
 
+    cal = sub.add_parser("calibrate", help="measure a model's residual-noise calibration on held-out windows")
+    csub = cal.add_subparsers(dest="model", required=True, metavar="MODEL")
+    p = csub.add_parser("gesture", help="the gesture generator (written as a new model folder)")
+    p.add_argument("--model", required=True, type=Path, help="run folder of `emogesture train gesture`")
+    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
+    p.add_argument("--out", required=True, type=Path, help="folder for the calibrated copy of the model")
+    p.add_argument("--split", default="val", help="held-out cache split to measure on (default val)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the samples measured (default 0)")
+    p.add_argument("--scale", type=float, default=1.0, help="residual noise scale stored with the model (default 1)")
+    p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
+    p.set_defaults(func=run_calibrate_gesture)
+
 
 def run_train_speech(args: argparse.Namespace) -> int:
     from emogesture.train.speech import SpeechTrainConfig, build
@@ -73,6 +85,16 @@ def run_train_gesture(args: argparse.Namespace) -> int:
     config = load_config(GestureTrainConfig, args.config, args.overrides, base=base)
     return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech), "gesture model",
                 {"speech": str(args.speech.resolve()) if args.speech else None})
+
+
+def run_calibrate_gesture(args: argparse.Namespace) -> int:
+    from emogesture.train.gesture import calibrate_run
+
+    stats = calibrate_run(args.model, args.data, args.out, args.split, args.seed, args.overwrite, args.scale)
+    print(f"gesture model calibrated on {stats['windows']} {args.split} windows (residual variance "
+          f"{stats['residual_variance']:.4f}, latent variance {stats['latent_variance']:.4f}, "
+          f"shrinkage {stats['shrinkage']:.3f}): {args.out / 'model.json'}")
+    return 0
 
 
 def _run(args: argparse.Namespace, command: str, config, build, what: str, more: dict | None = None) -> int:

@@ -44,6 +44,10 @@ class DiffusionConfig:
     timestep_spacing: str = "leading"
     num_inference_steps: int = 50
     eta: float = 0.0
+    #: Sampling only, not in the paper: scale of the calibrated residual noise added to each DDIM sample
+    #: (:mod:`emogesture.diffusion.residual`; 0 = off, the paper). It acts only on a model that carries
+    #: a calibration (``GestureModel.latent_residual_tril``, written at the end of training).
+    residual_scale: float = 0.0
 
     def __post_init__(self) -> None:
         def choice(name: str, allowed: tuple[str, ...]) -> None:
@@ -62,8 +66,8 @@ class DiffusionConfig:
             raise ConfigError(
                 f"diffusion: num_inference_steps must be in 1..{self.num_train_timesteps}, got {self.num_inference_steps}"
             )
-        if self.steps_offset < 0 or self.eta < 0 or self.clip_sample_range <= 0:
-            raise ConfigError("diffusion: steps_offset and eta must be ≥ 0, clip_sample_range > 0")
+        if self.steps_offset < 0 or self.eta < 0 or self.clip_sample_range <= 0 or self.residual_scale < 0:
+            raise ConfigError("diffusion: steps_offset, eta and residual_scale must be ≥ 0, clip_sample_range > 0")
 
 
 def _common(cfg: DiffusionConfig) -> dict[str, Any]:

@@ -54,9 +54,13 @@ class GestureModelConfig:
         t ≈ 1000 an ε error is multiplied by sqrt((1 − ᾱ_t) / ᾱ_t) ≈ 15 in the implied ẑ0; clipping
         ẑ0 to [-1, 1] (the authors' released inference) keeps the samples on scale but GA stays at
         chance. v-prediction gives GA 0.62 and ẑ0-prediction 0.73.
+
+        A ẑ0 denoiser regresses to the conditional mean, so ``tiny`` also adds the calibrated residual
+        noise (``diffusion.residual_scale = 1``, see :mod:`emogesture.diffusion.residual`).
         """
         n = 1 if variant == "no_audio" else 3
-        diffusion = DiffusionConfig(prediction_type="sample") if name == "tiny" else DiffusionConfig()
+        diffusion = (DiffusionConfig(prediction_type="sample", residual_scale=1.0) if name == "tiny"
+                     else DiffusionConfig())
         return cls(variant=variant, vae=MotionVAEConfig.preset(name), denoiser=DenoiserConfig.preset(name, n),
                    diffusion=diffusion)
 
@@ -103,7 +107,14 @@ class MFCCAutoencoder(nn.Module):
 
 
 class GestureModel(nn.Module):
-    """Motion prior (``prior``) + latent denoiser (``denoiser``) [+ ``audio_ae`` for ``no_audio``]."""
+    """Motion prior (``prior``) + latent denoiser (``denoiser``) [+ ``audio_ae`` for ``no_audio``].
+
+    ``latent_residual_tril [256, 256]``: the residual-noise calibration (lower Cholesky factor of the
+    covariance of ``z − ẑ`` on held-out windows; all zeros = not calibrated, no residual noise).
+    """
+
+    #: State-dict entries a model file may lack (files from before they existed load with the default).
+    optional_state_keys = ("latent_residual_tril",)
 
     def __init__(self, config: GestureModelConfig) -> None:
         super().__init__()
@@ -112,6 +123,12 @@ class GestureModel(nn.Module):
         self.denoiser = LatentDenoiser(config.denoiser)
         self.audio_ae = (MFCCAutoencoder(config.mfcc_dim, config.audio_ae_width, config.denoiser.cond_dim)
                          if config.variant == "no_audio" else None)
+        self.register_buffer("latent_residual_tril", torch.zeros(config.vae.latent_dim, config.vae.latent_dim))
+
+    @property
+    def calibrated(self) -> bool:
+        """True once a residual-noise calibration is stored."""
+        return bool(self.latent_residual_tril.abs().sum() > 0)
 
     def count_parameters(self) -> dict[str, int]:
         out = {"prior": sum(p.numel() for p in self.prior.parameters()),

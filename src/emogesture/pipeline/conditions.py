@@ -16,6 +16,7 @@ from emogesture.audio import mfcc_from_log_mel
 from emogesture.checkpoints import LoadedModel
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache
+from emogesture.diffusion.residual import add_residual_noise, residual_factor, shrunk_covariance
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
@@ -64,12 +65,14 @@ def window_seeds(seed: int, count: int) -> list[int]:
 
 @torch.no_grad()
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
-                             batch_size: int = 64, num_inference_steps: int | None = None) -> np.ndarray:
+                             batch_size: int = 64, num_inference_steps: int | None = None,
+                             residual: bool = True) -> np.ndarray:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
     (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
-    the model's configuration, and its ``diffusion.eta`` is used.
+    the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
+    noise (``diffusion.residual_scale``) unless ``residual=False``.
     """
     model = gesture.model.eval()
     device = next(model.parameters()).device
@@ -86,8 +89,10 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
                  for c in conditions]
         if model.audio_ae is not None:
             conds = [model.audio_ae(conds[0])[0]]
-        z = ddim_sample(model.denoiser, scheduler, conds, make_generators(seeds[i : i + batch_size]),
-                        num_inference_steps=steps, eta=cfg.diffusion.eta)
+        generators = make_generators(seeds[i : i + batch_size])
+        z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps, eta=cfg.diffusion.eta)
+        if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
+            z = add_residual_noise(z, model.latent_residual_tril, generators, cfg.diffusion.residual_scale)
         out.append(model.prior.decode(z, frames=cfg.vae.frames).cpu().numpy())
     return np.concatenate(out) * std + mean
 
@@ -106,3 +111,39 @@ def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int
         z, _, _ = model.prior.encode(x, sample=False)
         out.append(model.prior.decode(z, frames=x.shape[1]).cpu().numpy())
     return np.concatenate(out) * std + mean
+
+
+@torch.no_grad()
+def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,
+                       batch_size: int = 64) -> dict:
+    """Measure and store the residual-noise calibration of a gesture model (see
+    :mod:`emogesture.diffusion.residual`) on windows it was not trained on.
+
+    ``conditions``: raw conditions of those windows (as :func:`window_conditions`); ``motion``: their raw
+    motion ``[W, T, D]``. The residual of a window is its motion's prior latent (encoder mean) minus the
+    model's sample for its conditions (no residual noise, seeds from ``seed``). Sets
+    ``gesture.model.latent_residual_tril`` and returns what was measured.
+    """
+    model = gesture.model.eval()
+    device = next(model.parameters()).device
+    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
+    std = np.asarray(gesture.extra["motion_std"], np.float32)
+    if len(motion) < 2:
+        raise EmogestureError(f"residual calibration needs at least 2 held-out windows, got {len(motion)}")
+    seeds = window_seeds(seed, len(motion))
+    sampled, real = [], []
+    scheduler = make_ddim_scheduler(gesture.config.diffusion)
+    for i in range(0, len(motion), batch_size):
+        conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device) for c in conditions]
+        if model.audio_ae is not None:
+            conds = [model.audio_ae(conds[0])[0]]
+        sampled.append(ddim_sample(model.denoiser, scheduler, conds, make_generators(seeds[i : i + batch_size]),
+                                   eta=gesture.config.diffusion.eta).cpu())
+        x = torch.from_numpy((np.asarray(motion[i : i + batch_size], np.float32) - mean) / std).to(device)
+        real.append(model.prior.encode(x, sample=False)[0].cpu())
+    z, z_hat = torch.cat(real).numpy(), torch.cat(sampled).numpy()
+    residuals = z - z_hat
+    _, shrinkage = shrunk_covariance(residuals)
+    model.latent_residual_tril.copy_(torch.from_numpy(residual_factor(residuals)))
+    return {"windows": int(len(motion)), "seed": int(seed), "residual_variance": float(residuals.var(0).mean()),
+            "latent_variance": float(z.var(0).mean()), "shrinkage": float(shrinkage)}

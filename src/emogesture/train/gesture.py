@@ -7,10 +7,13 @@ random t: L_LD = ||target - Δ(z_t, t, c, e, s)||², target = ε in the paper (t
 units and not comparable with ε-runs); (3) without gradient, the full DDIM loop from noise
 with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
 The audio model is frozen: c, e, s are computed once per window by the speech run and cached.
+When training ends, a model with ``diffusion.residual_scale > 0`` (tiny) measures its residual-noise
+calibration on the cache's validation windows (:func:`emogesture.pipeline.conditions.calibrate_residual`).
 """
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +23,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.checkpoints import save_model
+from emogesture.checkpoints import LoadedModel, save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
@@ -29,7 +32,7 @@ from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_sched
 from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
-from emogesture.pipeline.conditions import window_conditions
+from emogesture.pipeline.conditions import calibrate_residual, window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
@@ -252,7 +255,53 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
         extra["emotion_latent_means"] = {
             EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist() for k in sorted(set(train.emotion.tolist()))}
 
+    # residual-noise calibration on the held-out validation windows, once, when training ends
+    calibration = None
+    if config.model.diffusion.residual_scale > 0:
+        if "val" in cache.splits:
+            calibration = (window_conditions(variant, cache, "val", speech), cache.split("val").motion)
+        else:
+            print(f"note: {cache_dir} has no val windows, so the model will not be calibrated and will sample "
+                  "without residual noise (`emogesture calibrate gesture` can add it later)", file=sys.stderr)
+    calibrated: dict = {}
+
     def export(m: GestureModule, run_dir: Path) -> None:
-        save_model(run_dir, "gesture", m.averaged, m.cfg.model, {**extra, "step": m.global_step})
+        done = {**extra, "step": m.global_step}
+        if calibration is not None and m.global_step >= (m.trainer.max_steps or 0) > 0:
+            if calibrated.get("step") != m.global_step:
+                was_training = m.averaged.training
+                stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir), *calibration, seed=seed)
+                m.averaged.train(was_training)
+                calibrated.update(stats, step=m.global_step, split="val")
+            done["residual_calibration"] = dict(calibrated)
+        save_model(run_dir, "gesture", m.averaged, m.cfg.model, done)
 
     return data, module, export
+
+
+def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", seed: int = 0,
+                  overwrite: bool = False, scale: float = 1.0) -> dict:
+    """Write a copy of the gesture model of ``run`` to ``out`` with its residual-noise calibration
+    measured on ``split`` of the cache and ``diffusion.residual_scale = scale`` (``emogesture calibrate
+    gesture``); returns what was measured. For models trained before calibration existed, or to
+    calibrate on other held-out windows."""
+    from emogesture.checkpoints import load_model, model_paths
+    from emogesture.errors import OutputExistsError
+
+    out = Path(out)
+    if scale < 0:
+        raise ConfigError(f"residual scale must be ≥ 0, got {scale}")
+    if not overwrite:
+        for p in model_paths(out):
+            if p.exists():
+                raise OutputExistsError(p)
+    gesture = load_model(run, "gesture")
+    cache = open_cache(cache_dir)
+    variant = gesture.config.variant
+    speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(gesture.extra["speech_model"])
+    windows = cache.split(split)
+    stats = calibrate_residual(gesture, window_conditions(variant, cache, split, speech), windows.motion, seed=seed)
+    stats.update(step=gesture.extra.get("step"), split=split)
+    gesture.config.diffusion.residual_scale = float(scale)
+    save_model(out, "gesture", gesture.model, gesture.config, {**gesture.extra, "residual_calibration": stats})
+    return stats
