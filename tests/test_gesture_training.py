@@ -42,7 +42,8 @@ def trained(tmp_path_factory):
     assert out.returncode == 0, out.stderr[-2000:]
     for variant in VARIANTS:
         out = subprocess.run(cli("train", "gesture", "--variant", variant, "--data", d / "cache", "--speech", d / "speech",
-                                 "--out", d / variant, "--steps", 4, "--log-every", 1, "--quiet", *SMALL), capture_output=True, text=True)
+                                 "--out", d / variant, "--steps", 4, "--checkpoint-every", 2, "--log-every", 1, "--quiet",
+                                 *SMALL), capture_output=True, text=True)
         assert out.returncode == 0, (variant, out.stderr[-2000:])
     return d
 
@@ -127,7 +128,14 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     plain = generate_from_conditions(model, conds, window_seeds(0, 3), residual=False)
     noisy = generate_from_conditions(model, conds, window_seeds(0, 3))
     assert not np.allclose(plain, noisy)
-    # `calibrate gesture` writes a calibrated copy (never over an existing model) ...
+    # `calibrate gesture` writes a calibrated copy (never over an existing model); with the training seed it
+    # measures what training stored (the last step's checkpoint is saved before the weight average's last
+    # update, so the export when training ends must measure again)
+    same = subprocess.run(cli("calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache",
+                              "--out", tmp_path / "same"), capture_output=True, text=True)
+    assert same.returncode == 0, same.stderr[-2000:]
+    np.testing.assert_allclose(load_model(tmp_path / "same", "gesture").model.latent_residual_tril.numpy(),
+                               model.model.latent_residual_tril.numpy(), atol=1e-5)
     args = ["calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache", "--out", tmp_path / "cal",
             "--seed", 3, "--scale", 0.5]
     out = subprocess.run(cli(*args), capture_output=True, text=True)

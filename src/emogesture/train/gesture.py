@@ -263,17 +263,16 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
         else:
             print(f"note: {cache_dir} has no val windows, so the model will not be calibrated and will sample "
                   "without residual noise (`emogesture calibrate gesture` can add it later)", file=sys.stderr)
-    calibrated: dict = {}
 
     def export(m: GestureModule, run_dir: Path) -> None:
         done = {**extra, "step": m.global_step}
+        # measured afresh at every export of the last step: the checkpoint of that step is saved before
+        # the weight average takes its last update, and the export when training ends comes after it
         if calibration is not None and m.global_step >= (m.trainer.max_steps or 0) > 0:
-            if calibrated.get("step") != m.global_step:
-                was_training = m.averaged.training
-                stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir), *calibration, seed=seed)
-                m.averaged.train(was_training)
-                calibrated.update(stats, step=m.global_step, split="val")
-            done["residual_calibration"] = dict(calibrated)
+            was_training = m.averaged.training
+            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir), *calibration, seed=seed)
+            m.averaged.train(was_training)
+            done["residual_calibration"] = {**stats, "step": m.global_step, "split": "val"}
         save_model(run_dir, "gesture", m.averaged, m.cfg.model, done)
 
     return data, module, export
