@@ -64,10 +64,24 @@ def _bytes(root: Path) -> dict[str, bytes]:
 
 def test_config_validation():
     for bad in (dict(speakers=0), dict(speakers=31), dict(texts_per_emotion=7), dict(workers=0),
-                dict(engines=("say",)), dict(min_take_seconds=0.1)):
+                dict(engines=("say",)), dict(min_take_seconds=0.1), dict(emotion_prosody_scale=-1)):
         with pytest.raises(ConfigError):
             _config(**bad).validate()
     assert "workers" not in _config().identity()
+    # the default prosody strength leaves the identity of corpora built before the setting existed
+    assert "emotion_prosody_scale" not in _config().identity()
+    assert _config(emotion_prosody_scale=1.5).identity()["emotion_prosody_scale"] == 1.5
+
+
+def test_emotion_prosody_scale_scales_every_effect():
+    from emogesture.data.synthetic.factors import EMOTION_FACTORS, Prosody, scale_prosody
+
+    p = EMOTION_FACTORS["sadness"].prosody
+    assert scale_prosody(p, 1.0) == p and scale_prosody(p, 0.0) == Prosody()
+    q = scale_prosody(p, 2.0)
+    assert q.pitch == 2 * p.pitch and q.gain_db == 2 * p.gain_db and q.tilt == 2 * p.tilt
+    assert q.rate == pytest.approx(p.rate**2) and q.pitch_range == pytest.approx(p.pitch_range**2)
+    assert q.breathiness == 2 * p.breathiness and q.tremolo == 2 * p.tremolo
 
 
 def test_plan_holds_out_whole_texts():

@@ -55,6 +55,8 @@ class CorpusConfig:
     seed: int = 0
     workers: int = 2
     engines: tuple[str, ...] = ENGINES
+    #: Strength of the emotions' speech prosody (1 = the factor table; see ``scale_prosody``).
+    emotion_prosody_scale: float = 1.0
 
     def validate(self) -> None:
         """Raise ConfigError on an impossible setting."""
@@ -67,6 +69,8 @@ class CorpusConfig:
             raise ConfigError(f"min_take_seconds must be 1-600, got {self.min_take_seconds}")
         if self.workers < 1:
             raise ConfigError(f"workers must be >= 1, got {self.workers}")
+        if not 0.0 <= self.emotion_prosody_scale <= 3.0:
+            raise ConfigError(f"emotion_prosody_scale must be 0-3, got {self.emotion_prosody_scale}")
         if not self.engines or set(self.engines) - set(ENGINES):
             raise ConfigError(f"engines must be a non-empty subset of {ENGINES}, got {self.engines}")
 
@@ -75,6 +79,8 @@ class CorpusConfig:
         d = asdict(self)
         d.pop("workers")
         d["engines"] = list(self.engines)
+        if self.emotion_prosody_scale == 1.0:  # corpora from before the setting existed keep their identity
+            d.pop("emotion_prosody_scale")
         return d
 
 
@@ -109,7 +115,7 @@ def plan_takes(config: CorpusConfig) -> tuple[list[TakePlan], dict[str, str]]:
         for emo, (lo, _) in enumerate(EMOTION_TAKE_RANGES):
             for i in range(n):
                 plan = TakePlan(spk, lo + i, emo, i, config.seed, float(config.min_take_seconds),
-                                tuple(config.engines))
+                                tuple(config.engines), float(config.emotion_prosody_scale))
                 plans.append(plan)
                 splits[plan.name] = text_split(i, n)
     return plans, splits

@@ -227,7 +227,16 @@ def combine_prosody(*parts: Prosody) -> Prosody:
     )
 
 
-def words_needed(min_seconds: float, emotion: str) -> int:
+def scale_prosody(p: Prosody, scale: float) -> Prosody:
+    """``p`` with every effect ``scale`` times as large: additive factors times ``scale``, multiplicative
+    ones to the power ``scale`` (1 = unchanged, 0 = neutral)."""
+    return Prosody(pitch=p.pitch * scale, pitch_range=float(p.pitch_range ** scale), rate=float(p.rate ** scale),
+                   gain_db=p.gain_db * scale, tilt=p.tilt * scale, breathiness=p.breathiness * scale,
+                   tremolo=p.tremolo * scale)
+
+
+def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float = 1.0) -> int:
     """Words a text of ``emotion`` needs so that even its fastest speaker talks ``min_seconds``."""
-    fastest = np.exp(0.1) * EMOTION_FACTORS[emotion].prosody.rate * np.exp(0.1)  # speaker, emotion, jitter
+    rate = EMOTION_FACTORS[emotion].prosody.rate ** emotion_prosody_scale
+    fastest = np.exp(0.1) * rate * np.exp(0.1)  # speaker, emotion, jitter
     return int(np.ceil(min_seconds * BASE_WORDS_PER_SECOND * fastest))

@@ -22,6 +22,7 @@ from emogesture.data.synthetic.factors import (
     combine_prosody,
     make_jitter,
     make_speaker,
+    scale_prosody,
     words_needed,
 )
 from emogesture.data.synthetic.gestures import Stroke, make_motion
@@ -54,6 +55,7 @@ class TakePlan:
     seed: int
     min_seconds: float
     engines: tuple[str, ...]
+    emotion_prosody_scale: float = 1.0
 
     @property
     def name(self) -> str:
@@ -68,7 +70,7 @@ def take_paths(out: Path, name: str) -> dict[str, Path]:
 def base_sentences(plan: TakePlan) -> int:
     """Sentences of the text's stream every speaker of this text starts from."""
     emotion = EMOTIONS[plan.emotion]
-    return sentences_for_words(plan.seed, emotion, plan.text_index, words_needed(plan.min_seconds, emotion))
+    return sentences_for_words(plan.seed, emotion, plan.text_index, words_needed(plan.min_seconds, emotion, plan.emotion_prosody_scale))
 
 
 def _replace_atomic(path: Path, write) -> None:
@@ -97,7 +99,7 @@ def build_take(out: Path, plan: TakePlan) -> str:
     emotion = EMOTION_FACTORS[emotion_name]
     speaker = make_speaker(plan.seed, plan.speaker_id, plan.engines)
     jitter = make_jitter(plan.seed, plan.speaker_id, plan.take)
-    prosody = combine_prosody(speaker.prosody, emotion.prosody, jitter.prosody)
+    prosody = combine_prosody(speaker.prosody, scale_prosody(emotion.prosody, plan.emotion_prosody_scale), jitter.prosody)
     first = base_sentences(plan)
     with tempfile.TemporaryDirectory(prefix="emogesture-tts-") as tmp:
         for count in range(first, first + MAX_EXTRA_SENTENCES + 1):  # lengthen a take that came out short
