@@ -73,19 +73,25 @@ def content_use(encoder: SpeechLatentEncoder, windows, seed: int, batch_size: in
     n = len(windows.fbank)
     perm = np.random.default_rng(seed).permutation(n)
     perm = np.where(perm == np.arange(n), np.roll(perm, 1), perm)  # never a window's own content
-    contents, latents, sums = [], [], {"self": 0.0, "content_shuffled": 0.0, "time_mean": 0.0}
-    for i in range(0, n, batch_size):
-        enc = model.encode(torch.from_numpy(np.asarray(windows.fbank[i : i + batch_size], np.float32)).to(encoder.device))
+
+    def batches():
+        for i in range(0, n, batch_size):
+            yield i, torch.from_numpy(np.asarray(windows.fbank[i : i + batch_size], np.float32)).to(encoder.device)
+
+    def l1(x: torch.Tensor, target: torch.Tensor) -> float:
+        return float((x - target).abs().sum())
+
+    sums = {"self": 0.0, "content_shuffled": 0.0, "time_mean": 0.0}
+    contents, others = [], []
+    for _, fb in batches():  # first pass: latents, own reconstruction, time-averaged spectrum
+        enc = model.encode(fb)
         contents.append(enc.content)
-        latents.append((enc.emotion, enc.style))
+        others.append((enc.emotion, enc.style))
+        sums["self"] += l1(model.decode(enc.content, enc.emotion, enc.style), fb)
+        sums["time_mean"] += l1(fb.mean(dim=1, keepdim=True), fb)
     content = torch.cat(contents)
-    for b, i in enumerate(range(0, n, batch_size)):
-        fb = torch.from_numpy(np.asarray(windows.fbank[i : i + batch_size], np.float32)).to(encoder.device)
-        e, s = latents[b]
-        sums["self"] += float((model.decode(content[i : i + len(fb)], e, s) - fb).abs().sum(dim=(1, 2)).sum())
-        swapped = content[torch.from_numpy(perm[i : i + len(fb)])]
-        sums["content_shuffled"] += float((model.decode(swapped, e, s) - fb).abs().sum(dim=(1, 2)).sum())
-        sums["time_mean"] += float((fb.mean(dim=1, keepdim=True) - fb).abs().sum(dim=(1, 2)).sum())
+    for (i, fb), (e, s) in zip(batches(), others):  # second pass: another window's content latent
+        sums["content_shuffled"] += l1(model.decode(content[torch.from_numpy(perm[i : i + len(fb)])], e, s), fb)
     size = n * windows.fbank.shape[1] * windows.fbank.shape[2]
     return {k: v / size for k, v in sums.items()}
 

@@ -63,24 +63,21 @@ def window_seeds(seed: int, count: int) -> list[int]:
     return [int(np.random.SeedSequence([seed, 7, i]).generate_state(1)[0]) for i in range(count)]
 
 
-@torch.no_grad()
-def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
-                             batch_size: int = 64, num_inference_steps: int | None = None,
-                             residual: bool = True) -> np.ndarray:
-    """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
+def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
+    """The model's per-feature motion mean and std (raw features <-> the prior's normalised ones)."""
+    return (np.asarray(gesture.extra["motion_mean"], np.float32), np.asarray(gesture.extra["motion_std"], np.float32))
 
-    Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
-    (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
-    the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
-    noise (``diffusion.residual_scale``) unless ``residual=False``.
-    """
+
+@torch.no_grad()
+def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int], batch_size: int = 64,
+                   num_inference_steps: int | None = None, residual: bool = True) -> torch.Tensor:
+    """Raw conditions ``[W, ·]`` and one noise seed per window -> sampled motion latents ``[W, 256]``
+    (on the model's device); see :func:`generate_from_conditions`."""
     model = gesture.model.eval()
     device = next(model.parameters()).device
     cfg = gesture.config
     scheduler = make_ddim_scheduler(cfg.diffusion)
     steps = num_inference_steps or cfg.diffusion.num_inference_steps
-    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
-    std = np.asarray(gesture.extra["motion_std"], np.float32)
     if any(len(c) != len(seeds) for c in conditions):
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
     out = []
@@ -93,27 +90,52 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
         z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps, eta=cfg.diffusion.eta)
         if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
             z = add_residual_noise(z, model.latent_residual_tril, generators, cfg.diffusion.residual_scale)
-        out.append(model.prior.decode(z, frames=cfg.vae.frames).cpu().numpy())
-    return np.concatenate(out) * std + mean
+        out.append(z)
+    return torch.cat(out)
 
 
 @torch.no_grad()
-def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> np.ndarray:
-    """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
-    (encoder mean, then decoder), raw features ``[W, T, D]``."""
+def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> torch.Tensor:
+    """Raw motion features ``[W, T, D]`` -> the prior's latents (encoder mean) ``[W, 256]``."""
     model = gesture.model.eval()
     device = next(model.parameters()).device
-    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
-    std = np.asarray(gesture.extra["motion_std"], np.float32)
+    mean, std = _motion_statistics(gesture)
     out = []
     for i in range(0, len(motion), batch_size):
         x = torch.from_numpy((np.asarray(motion[i : i + batch_size], np.float32) - mean) / std).to(device)
-        z, _, _ = model.prior.encode(x, sample=False)
-        out.append(model.prior.decode(z, frames=x.shape[1]).cpu().numpy())
-    return np.concatenate(out) * std + mean
+        out.append(model.prior.encode(x, sample=False)[0])
+    return torch.cat(out)
 
 
 @torch.no_grad()
+def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64) -> np.ndarray:
+    """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]``."""
+    model = gesture.model.eval()
+    mean, std = _motion_statistics(gesture)
+    out = [model.prior.decode(z[i : i + batch_size], frames=frames).cpu().numpy() for i in range(0, len(z), batch_size)]
+    return np.concatenate(out) * std + mean
+
+
+def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
+                             batch_size: int = 64, num_inference_steps: int | None = None,
+                             residual: bool = True) -> np.ndarray:
+    """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
+
+    Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
+    (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
+    the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
+    noise (``diffusion.residual_scale``) unless ``residual=False``.
+    """
+    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual)
+    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size)
+
+
+def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> np.ndarray:
+    """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
+    (encoder mean, then decoder), raw features ``[W, T, D]``."""
+    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size)
+
+
 def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,
                        batch_size: int = 64) -> dict:
     """Measure and store the residual-noise calibration of a gesture model (see
@@ -124,26 +146,12 @@ def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motio
     model's sample for its conditions (no residual noise, seeds from ``seed``). Sets
     ``gesture.model.latent_residual_tril`` and returns what was measured.
     """
-    model = gesture.model.eval()
-    device = next(model.parameters()).device
-    mean = np.asarray(gesture.extra["motion_mean"], np.float32)
-    std = np.asarray(gesture.extra["motion_std"], np.float32)
     if len(motion) < 2:
         raise EmogestureError(f"residual calibration needs at least 2 held-out windows, got {len(motion)}")
-    seeds = window_seeds(seed, len(motion))
-    sampled, real = [], []
-    scheduler = make_ddim_scheduler(gesture.config.diffusion)
-    for i in range(0, len(motion), batch_size):
-        conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device) for c in conditions]
-        if model.audio_ae is not None:
-            conds = [model.audio_ae(conds[0])[0]]
-        sampled.append(ddim_sample(model.denoiser, scheduler, conds, make_generators(seeds[i : i + batch_size]),
-                                   eta=gesture.config.diffusion.eta).cpu())
-        x = torch.from_numpy((np.asarray(motion[i : i + batch_size], np.float32) - mean) / std).to(device)
-        real.append(model.prior.encode(x, sample=False)[0].cpu())
-    z, z_hat = torch.cat(real).numpy(), torch.cat(sampled).numpy()
-    residuals = z - z_hat
+    z_hat = sample_latents(gesture, conditions, window_seeds(seed, len(motion)), batch_size, residual=False)
+    z = encode_motion(gesture, motion, batch_size).cpu().numpy()
+    residuals = z - z_hat.cpu().numpy()
     _, shrinkage = shrunk_covariance(residuals)
-    model.latent_residual_tril.copy_(torch.from_numpy(residual_factor(residuals)))
+    gesture.model.latent_residual_tril.copy_(torch.from_numpy(residual_factor(residuals)))
     return {"windows": int(len(motion)), "seed": int(seed), "residual_variance": float(residuals.var(0).mean()),
             "latent_variance": float(z.var(0).mean()), "shrinkage": float(shrinkage)}
