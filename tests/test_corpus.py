@@ -33,6 +33,7 @@ from emogesture.motion import ARM_JOINTS, LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, 
 
 MIN_SECONDS = 8.0
 SEED = 0
+SCALE = CorpusConfig().emotion_prosody_scale  # the default emotion prosody strength
 FILES = {"smplxflame_30": ".npz", "wave16k": ".wav", "textgrid": ".TextGrid", "sem": ".txt"}
 
 
@@ -68,9 +69,18 @@ def test_config_validation():
         with pytest.raises(ConfigError):
             _config(**bad).validate()
     assert "workers" not in _config().identity()
-    # the default prosody strength leaves the identity of corpora built before the setting existed
-    assert "emotion_prosody_scale" not in _config().identity()
-    assert _config(emotion_prosody_scale=1.5).identity()["emotion_prosody_scale"] == 1.5
+    # scale 1 keeps the identity of corpora built before the setting existed; the default (1.5) is recorded
+    assert "emotion_prosody_scale" not in _config(emotion_prosody_scale=1.0).identity()
+    assert _config().identity()["emotion_prosody_scale"] == 1.5
+
+
+def test_a_corpus_of_the_earlier_default_is_named_as_such():
+    from emogesture.data.synthetic.corpus import CORPUS_VERSION, _differences
+
+    now = {"version": CORPUS_VERSION, "config": _config().identity()}
+    before = {"version": CORPUS_VERSION, "config": _config(emotion_prosody_scale=1.0).identity()}
+    assert _differences(before, now) == "emotion_prosody_scale: 1.0 there, 1.5 here"
+    assert _differences(None, now) == "unreadable marker"
 
 
 def test_emotion_prosody_scale_scales_every_effect():
@@ -154,7 +164,7 @@ def test_every_speaker_speaks_every_text(corpus):
 def test_motion_is_anatomically_plausible(corpus):
     root, _ = corpus
     body = SkeletonBody()
-    for name in sorted(p.stem for p in (root / "smplxflame_30").glob("*.npz"))[::7]:
+    for name in sorted(p.stem for p in (root / "smplxflame_30").glob("*.npz")):  # every take
         joints = body(torch.from_numpy(load_smplx_npz(root / "smplxflame_30" / f"{name}.npz").poses)).numpy()
         wrists, shoulders, head, chest = joints[:, [20, 21]], joints[:, [16, 17]], joints[:, 15], joints[:, 9]
         assert np.all(wrists[..., 1] < head[:, None, 1])  # hands below the head
@@ -177,8 +187,8 @@ def test_same_seed_same_bytes(corpus, mini, tmp_path):
     for sub, suffix in FILES.items():
         for p in (small / sub).iterdir():
             assert p.read_bytes() == (root / sub / p.name).read_bytes(), p.name
-    for plan in (TakePlan(2, 75, 2, 2, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival")),  # espeak-ng
-                 TakePlan(3, 104, 6, 1, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival"))):  # festival
+    for plan in (TakePlan(2, 75, 2, 2, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival"), SCALE),  # espeak-ng
+                 TakePlan(3, 104, 6, 1, SEED, MIN_SECONDS, ("flite", "espeak-ng", "festival"), SCALE)):  # festival
         build_take(tmp_path, plan)
         for sub, suffix in FILES.items():
             assert (tmp_path / sub / f"{plan.name}{suffix}").read_bytes() == \
@@ -201,8 +211,8 @@ def test_resume_rebuilds_exactly_the_damaged_takes(mini, tmp_path):
     summary = build_corpus(root, _config(speakers=1, texts_per_emotion=1, workers=1), progress=False)
     assert (summary.built, summary.skipped) == (2, 6)
     assert _bytes(root) == before
-    with pytest.raises(EmogestureError, match="other settings"):
-        build_corpus(root, _config(speakers=1, texts_per_emotion=1, seed=1), progress=False)
+    with pytest.raises(EmogestureError, match=rf"other settings \(seed: {SEED} there, {SEED + 1} here\)"):
+        build_corpus(root, _config(speakers=1, texts_per_emotion=1, seed=SEED + 1), progress=False)
     with pytest.raises(EmogestureError, match="already holds"):
         build_corpus(root, _config(speakers=1, texts_per_emotion=1), progress=False, resume=False)
     (tmp_path / "other").mkdir()

@@ -21,8 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-seconds", type=float, default=20.0, help="minimum take length in seconds (default 20)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--workers", type=int, default=2, help="parallel processes (default 2)")
-    p.add_argument("--emotion-prosody-scale", type=float, default=1.0,
-                   help="strength of the emotions' speech prosody (default 1; 0 = every emotion sounds neutral)")
+    p.add_argument("--emotion-prosody-scale", type=float, default=1.5,
+                   help="strength of the emotions' speech prosody (default 1.5; 1 = the factor table, as in "
+                   "corpora built before this default; 0 = every emotion sounds neutral)")
     p.add_argument("--resume", action="store_true",
                    help="continue or re-check an existing corpus in --out instead of refusing")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

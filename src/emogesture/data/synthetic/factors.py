@@ -235,7 +235,7 @@ def scale_prosody(p: Prosody, scale: float) -> Prosody:
                    tremolo=p.tremolo * scale)
 
 
-def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float = 1.0) -> int:
+def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float) -> int:
     """Words a text of ``emotion`` needs so that even its fastest speaker talks ``min_seconds``."""
     rate = EMOTION_FACTORS[emotion].prosody.rate ** emotion_prosody_scale
     fastest = np.exp(0.1) * rate * np.exp(0.1)  # speaker, emotion, jitter

@@ -30,6 +30,7 @@ from emogesture.types import FPS, NUM_JOINTS
 
 ARM_DOWN = 1.25  # rad about Z that brings the T-pose arms down beside the body
 REST = dict(flex=0.12, abduct=0.0, elbow=0.5)
+MAX_ADDUCTION = 0.05  # rad the hanging arm may come closer to the body than at rest
 STROKE_WIDTH = 0.2  # s, rise half-width of a neutral stroke (return is 1.4× longer)
 STROKE_GAP = 0.7  # s, minimum spacing of neutral strokes
 STROKE_AMPLITUDE = 0.45  # rad scale of a neutral stroke
@@ -166,7 +167,9 @@ def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.G
     mirror = (np.array([1.0, 1.0, 1.0]), np.array([1.0, -1.0, -1.0]))
     for side in range(2):
         a, m = arms[side], mirror[side]
-        abduct = np.maximum(a["abduct"], -0.15)
+        # a lowered shoulder (negative shrug) turns the hanging arm inwards as well: together they bring
+        # the arm at most MAX_ADDUCTION closer to the body than the rest pose, so the hand stays beside the hips
+        abduct = np.maximum(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0))
         flex = np.clip(a["flex"], -0.3, 1.6)
         down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
         forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))

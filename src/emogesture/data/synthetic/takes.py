@@ -55,7 +55,7 @@ class TakePlan:
     seed: int
     min_seconds: float
     engines: tuple[str, ...]
-    emotion_prosody_scale: float = 1.0
+    emotion_prosody_scale: float  # see CorpusConfig
 
     @property
     def name(self) -> str:
@@ -70,7 +70,8 @@ def take_paths(out: Path, name: str) -> dict[str, Path]:
 def base_sentences(plan: TakePlan) -> int:
     """Sentences of the text's stream every speaker of this text starts from."""
     emotion = EMOTIONS[plan.emotion]
-    return sentences_for_words(plan.seed, emotion, plan.text_index, words_needed(plan.min_seconds, emotion, plan.emotion_prosody_scale))
+    words = words_needed(plan.min_seconds, emotion, plan.emotion_prosody_scale)
+    return sentences_for_words(plan.seed, emotion, plan.text_index, words)
 
 
 def _replace_atomic(path: Path, write) -> None:
