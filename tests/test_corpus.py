@@ -78,8 +78,9 @@ def test_a_corpus_of_the_earlier_default_is_named_as_such():
     from emogesture.data.synthetic.corpus import CORPUS_VERSION, _differences
 
     now = {"version": CORPUS_VERSION, "config": _config().identity()}
-    before = {"version": CORPUS_VERSION, "config": _config(emotion_prosody_scale=1.0).identity()}
-    assert _differences(before, now) == "emotion_prosody_scale: 1.0 there, 1.5 here"
+    before = {"version": 1, "config": _config(emotion_prosody_scale=1.0).identity()}
+    assert _differences(before, now) == f"emotion_prosody_scale: 1.0 there, 1.5 here, version: 1 there, {CORPUS_VERSION} here"
+    assert _differences(dict(now, version=1), now) == f"version: 1 there, {CORPUS_VERSION} here"
     assert _differences(None, now) == "unreadable marker"
 
 
