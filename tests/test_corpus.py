@@ -79,7 +79,8 @@ def test_a_corpus_of_the_earlier_default_is_named_as_such():
 
     now = {"version": CORPUS_VERSION, "config": _config().identity()}
     before = {"version": 1, "config": _config(emotion_prosody_scale=1.0).identity()}
-    assert _differences(before, now) == f"emotion_prosody_scale: 1.0 there, 1.5 here, version: 1 there, {CORPUS_VERSION} here"
+    assert _differences(before, now) == \
+        f"emotion_prosody_scale: 1.0 there, 1.5 here, version: 1 there, {CORPUS_VERSION} here"
     assert _differences(dict(now, version=1), now) == f"version: 1 there, {CORPUS_VERSION} here"
     assert _differences(None, now) == "unreadable marker"
 

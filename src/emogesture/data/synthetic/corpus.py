@@ -110,7 +110,7 @@ class CorpusSummary:
 
 
 def _differences(found, wanted: dict) -> str:
-    """``key: there -> here`` for each setting a found corpus marker differs in."""
+    """``key: <found> there, <wanted> here`` for each setting a found corpus marker differs in."""
     if not isinstance(found, dict) or not isinstance(found.get("config"), dict):
         return "unreadable marker"
     there = dict(found["config"], version=found.get("version"))

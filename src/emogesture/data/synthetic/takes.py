@@ -100,7 +100,8 @@ def build_take(out: Path, plan: TakePlan) -> str:
     emotion = EMOTION_FACTORS[emotion_name]
     speaker = make_speaker(plan.seed, plan.speaker_id, plan.engines)
     jitter = make_jitter(plan.seed, plan.speaker_id, plan.take)
-    prosody = combine_prosody(speaker.prosody, scale_prosody(emotion.prosody, plan.emotion_prosody_scale), jitter.prosody)
+    emotion_prosody = scale_prosody(emotion.prosody, plan.emotion_prosody_scale)
+    prosody = combine_prosody(speaker.prosody, emotion_prosody, jitter.prosody)
     first = base_sentences(plan)
     with tempfile.TemporaryDirectory(prefix="emogesture-tts-") as tmp:
         for count in range(first, first + MAX_EXTRA_SENTENCES + 1):  # lengthen a take that came out short
