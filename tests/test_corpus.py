@@ -219,8 +219,19 @@ def test_resume_rebuilds_exactly_the_damaged_takes(mini, tmp_path):
         build_corpus(root, _config(speakers=1, texts_per_emotion=1), progress=False, resume=False)
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "notes.txt").write_text("mine")
-    with pytest.raises(EmogestureError, match="not a synthetic corpus"):
-        build_corpus(tmp_path / "other", _config(speakers=1, texts_per_emotion=1), progress=False)
+    (tmp_path / "other" / "wave16k").mkdir()  # e.g. a real BEAT2 copy: never deleted, not even with overwrite
+    (tmp_path / "other" / "wave16k" / "a.wav").write_text("theirs")
+    for overwrite in (False, True):
+        with pytest.raises(EmogestureError, match="not a synthetic corpus"):
+            build_corpus(tmp_path / "other", _config(speakers=1, texts_per_emotion=1), progress=False,
+                         overwrite=overwrite)
+    assert (tmp_path / "other" / "wave16k" / "a.wav").read_text() == "theirs"
+    (root / "notes.txt").write_text("mine")
+    summary = build_corpus(root, _config(speakers=1, texts_per_emotion=1, seed=SEED + 1), progress=False,
+                           overwrite=True)  # the corpus of other settings, rebuilt; the user's file kept
+    assert summary.built == 8 and (root / "notes.txt").read_text() == "mine"
+    assert json.loads((root / "corpus.json").read_text())["config"]["seed"] == SEED + 1
+    assert _bytes(root).keys() == before.keys() | {"notes.txt"} and _bytes(root) != before
 
 
 # --- the generating factors are recoverable -----------------------------------------------------

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 import pytest
+import soundfile as sf
 
 from emogesture.data.cache import open_cache
 from emogesture.data.prepare import PrepareConfig, prepare
@@ -49,6 +50,26 @@ def test_second_run_does_nothing(tmp_path):
     res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
     assert res.takes_processed == 0 and not res.assembled
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cache").rglob("*") if p.is_file()} == stamp
+
+
+def test_changed_source_takes_are_prepared_again(tmp_path):
+    make_root(tmp_path / "root")
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    before = open_cache(tmp_path / "cache").split("train")
+    wav = tmp_path / "root" / "wave16k" / f"{before.takes[0]}.wav"
+    wave, sr = sf.read(wav, dtype="float32")
+    sf.write(wav, 0.5 * wave, sr)  # the same take, rewritten 6 dB quieter
+    res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    assert res.takes_processed == 1 and res.assembled
+    after = open_cache(tmp_path / "cache").split("train")
+    first = [i for i, t in enumerate(after.takes) if t == before.takes[0]]
+    assert not np.array_equal(after.fbank[first], before.fbank[first])
+    assert np.array_equal(after.motion, before.motion)
+    split = tmp_path / "root" / "train_test_split.csv"
+    split.write_text(split.read_text().replace(",test", ",train"))  # every take now trains
+    res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    assert res.takes_processed == 0 and res.assembled
+    assert open_cache(tmp_path / "cache").manifest["splits"]["test"] == 0
 
 
 def test_other_settings_into_the_same_cache_are_refused(tmp_path):

@@ -26,6 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "corpora built before this default; 0 = every emotion sounds neutral)")
     p.add_argument("--resume", action="store_true",
                    help="continue or re-check an existing corpus in --out instead of refusing")
+    p.add_argument("--overwrite", action="store_true",
+                   help="delete the synthetic corpus already in --out (e.g. one of other settings) and build anew")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run_corpus)
 
@@ -55,7 +57,7 @@ def run_corpus(args: argparse.Namespace) -> int:
         workers=args.workers,
         emotion_prosody_scale=args.emotion_prosody_scale,
     )
-    summary = build_corpus(args.out, config, progress=not args.quiet, resume=args.resume)
+    summary = build_corpus(args.out, config, progress=not args.quiet, resume=args.resume, overwrite=args.overwrite)
     print(summary.format())
     return 0
 

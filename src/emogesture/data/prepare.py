@@ -9,7 +9,10 @@ interrupted run resumes. Work happens in two stages:
    :mod:`emogesture.data.cache`), written under temporary names and renamed; ``manifest.json`` last.
 
 The settings are recorded in ``prepare_config.json`` when a cache is started; re-running with other
-settings into the same directory is refused rather than mixing two preparations.
+settings into the same directory is refused rather than mixing two preparations. Each prepared take
+records the size and modification time of its source files: a take whose files changed since (a
+rebuilt corpus, an edited take) is processed again, and a changed take list or split file
+re-assembles the windows.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import os
 import shutil
 import sys
 import time
+import zipfile
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
@@ -142,6 +146,32 @@ def process_take(root: Path, take: str, config: PrepareConfig) -> dict[str, np.n
     return {"fbank": fbank, "motion": motion.astype(np.float32), "sem": sem}
 
 
+SOURCE_FILES = (("wave16k", ".wav"), ("smplxflame_30", ".npz"), ("sem", ".txt"))
+
+
+def _file_stamp(path: Path) -> str:
+    """Size and modification time of ``path`` ('-' when missing): a rewritten file gets a new stamp."""
+    try:
+        st = path.stat()
+    except OSError:
+        return "-"
+    return f"{st.st_size}:{st.st_mtime_ns}"
+
+
+def source_stamp(root: Path, take: str) -> str:
+    """Stamp of the source files a take is prepared from (audio, motion, semantic scores)."""
+    return ";".join(f"{sub}={_file_stamp(root / sub / f'{take}{suffix}')}" for sub, suffix in SOURCE_FILES)
+
+
+def _prepared_stamp(path: Path) -> str | None:
+    """The source stamp a prepared take was made from (None: missing, unreadable or from an older cache)."""
+    try:
+        with np.load(path) as z:
+            return str(z["source"]) if "source" in z.files else None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile):
+        return None
+
+
 def full_window_starts(seconds: float, window: float, hop: float) -> list[float]:
     """Start times of full windows inside ``seconds``, every ``hop`` from 0."""
     n = int(np.floor((seconds - window) / hop + 1e-9)) + 1 if seconds >= window else 0
@@ -258,18 +288,24 @@ def prepare(
         os.replace(tmp, cfg_path)
 
     takes, skipped = find_takes(root, config.take_types)
+    stamps = {t: source_stamp(root, t) for t in takes}
+    sources = hashlib.sha1(json.dumps([stamps, _file_stamp(root / "train_test_split.csv")],
+                                      sort_keys=True).encode()).hexdigest()
     manifest_path = out / "manifest.json"
     if manifest_path.is_file():
         manifest = json.loads(manifest_path.read_text())
-        if manifest.get("takes") == takes and manifest.get("digest") == cfg["digest"]:
+        if (manifest.get("takes") == takes and manifest.get("digest") == cfg["digest"]
+                and manifest.get("sources") == sources):
             return PrepareResult(out, len(takes), 0, manifest["windows"], skipped, False, time.monotonic() - t0)
         manifest_path.unlink()  # the root changed: re-assemble
 
     take_dir = out / "takes"
     take_dir.mkdir(exist_ok=True)
-    todo = [t for t in takes if not (take_dir / f"{t}.npz").is_file()]
+    # a take is (re)processed when it is missing or its source files changed since it was prepared
+    todo = [t for t in takes if _prepared_stamp(take_dir / f"{t}.npz") != stamps[t]]
     for take in tqdm(todo, desc="prepare takes", unit="take", disable=not progress, mininterval=bar_interval()):
         arrays = process_take(root, take, config)
+        arrays["source"] = np.array(stamps[take])
         write_npz_atomic(take_dir / f"{take}.npz", arrays, overwrite=True)
 
     splits = assign_splits(root, takes, config.split_source)
@@ -296,6 +332,7 @@ def prepare(
         "config": cfg["config"],
         "root": cfg["root"],
         "takes": takes,
+        "sources": sources,
         "splits": {s: sum(1 for t in takes if splits[t] == s) for s in SPLITS},
         "windows": windows,
         "skipped": skipped,

@@ -184,19 +184,20 @@ def build_corpus(out_dir: str | PathLike[str], config: CorpusConfig, *, progress
     """Generate (or finish) the synthetic corpus in ``out_dir``; returns a summary.
 
     Complete takes are kept, missing or damaged ones (re)built; a complete corpus is left untouched.
-    ``overwrite`` deletes this generator's outputs first. With ``resume=False`` a folder that
-    already holds a corpus is an error. A folder holding a corpus of another config is always an
-    error (unless ``overwrite``), as is a non-empty folder that is not a corpus.
+    ``overwrite`` deletes a synthetic corpus found there first (only one this generator wrote, with
+    its marker file). With ``resume=False`` a folder that already holds a corpus is an error. A folder
+    holding a corpus of another config is always an error (unless ``overwrite``), as is a non-empty
+    folder that is not a synthetic corpus, with or without ``overwrite``.
     """
     start = time.perf_counter()
     config.validate()
     check_engines(tuple(config.engines))
     out = Path(out_dir)
     identity = {"version": CORPUS_VERSION, "config": config.identity()}
-    if overwrite and out.is_dir():
-        _clear(out)
     marker = out / MARKER
-    if out.is_dir() and any(out.iterdir()):
+    if overwrite and marker.is_file():
+        _clear(out)  # this generator's files only; anything else in the folder stays
+    elif out.is_dir() and any(out.iterdir()):
         if not marker.is_file():
             raise EmogestureError(f"{out}: not empty and not a synthetic corpus; choose a new folder")
         try:
@@ -205,7 +206,7 @@ def build_corpus(out_dir: str | PathLike[str], config: CorpusConfig, *, progress
             found = None
         if found != identity:
             raise EmogestureError(f"{out}: holds a corpus with other settings ({_differences(found, identity)}); "
-                                  "choose a new folder or overwrite it")
+                                  "choose a new folder or rebuild it with --overwrite")
         if not resume:
             raise EmogestureError(f"{out}: already holds a corpus; resume it (--resume) or choose a new folder")
     out.mkdir(parents=True, exist_ok=True)
