@@ -272,7 +272,7 @@ def test_shrunk_covariance_matches_the_ledoit_wolf_formula():
     # many samples of a correlated Gaussian: little shrinkage; fewer samples than dimensions: still positive definite
     assert shrunk_covariance(rng.normal(size=(5000, 6)) @ rng.normal(size=(6, 6)))[1] < 0.05
     few = rng.normal(size=(10, 32))
-    L = residual_factor(few)
+    L, _ = residual_factor(few)
     assert L.shape == (32, 32) and np.allclose(L, np.tril(L)) and np.all(np.diag(L) > 0)
     with pytest.raises(ValueError, match="residuals"):
         shrunk_covariance(np.zeros((1, 4)))

@@ -39,10 +39,11 @@ def shrunk_covariance(residuals: np.ndarray) -> tuple[np.ndarray, float]:
     return delta * target + (1 - delta) * s, delta
 
 
-def residual_factor(residuals: np.ndarray) -> np.ndarray:
-    """Lower-triangular ``L [D, D]`` with ``L Lᵀ`` = the shrunk covariance of ``residuals [N, D]``."""
-    cov, _ = shrunk_covariance(residuals)
-    return np.linalg.cholesky(cov).astype(np.float32)
+def residual_factor(residuals: np.ndarray) -> tuple[np.ndarray, float]:
+    """Lower-triangular ``L [D, D]`` with ``L Lᵀ`` = the shrunk covariance of ``residuals [N, D]``, and
+    the shrinkage used: ``(L, shrinkage)``."""
+    cov, shrinkage = shrunk_covariance(residuals)
+    return np.linalg.cholesky(cov).astype(np.float32), shrinkage
 
 
 def add_residual_noise(z: torch.Tensor, factor: torch.Tensor, generator: Generators, scale: float = 1.0) -> torch.Tensor:

@@ -16,7 +16,7 @@ from emogesture.audio import mfcc_from_log_mel
 from emogesture.checkpoints import LoadedModel
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache
-from emogesture.diffusion.residual import add_residual_noise, residual_factor, shrunk_covariance
+from emogesture.diffusion.residual import add_residual_noise, residual_factor
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
@@ -151,7 +151,7 @@ def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motio
     z_hat = sample_latents(gesture, conditions, window_seeds(seed, len(motion)), batch_size, residual=False)
     z = encode_motion(gesture, motion, batch_size).cpu().numpy()
     residuals = z - z_hat.cpu().numpy()
-    _, shrinkage = shrunk_covariance(residuals)
-    gesture.model.latent_residual_tril.copy_(torch.from_numpy(residual_factor(residuals)))
+    factor, shrinkage = residual_factor(residuals)
+    gesture.model.latent_residual_tril.copy_(torch.from_numpy(factor))
     return {"windows": int(len(motion)), "seed": int(seed), "residual_variance": float(residuals.var(0).mean()),
             "latent_variance": float(z.var(0).mean()), "shrinkage": float(shrinkage)}

@@ -23,13 +23,13 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.checkpoints import LoadedModel, save_model
+from emogesture.checkpoints import LoadedModel, load_model, model_paths, save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps, training_target
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
-from emogesture.errors import ConfigError
+from emogesture.errors import ConfigError, OutputExistsError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.pipeline.conditions import calibrate_residual, window_conditions
@@ -284,9 +284,6 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     measured on ``split`` of the cache and ``diffusion.residual_scale = scale`` (``emogesture calibrate
     gesture``); returns what was measured. For models trained before calibration existed, or to
     calibrate on other held-out windows."""
-    from emogesture.checkpoints import load_model, model_paths
-    from emogesture.errors import OutputExistsError
-
     out = Path(out)
     if scale < 0:
         raise ConfigError(f"residual scale must be ≥ 0, got {scale}")
