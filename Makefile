@@ -1,33 +1,58 @@
 # emogesture — two commands for a fresh machine:
-#   make demo   set everything up, then run the main job on the built-in default
+#   make demo   set everything up, then animate the shipped speech clips with the bundled model
 #   make test   set everything up, then run the test suite
+# and, for maintainers, `make model` rebuilds the bundled model from scratch (about 75 min on 2 cores).
 SHELL := /bin/bash
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
-APT_PACKAGES := espeak-ng flite festival festvox-us-slt-hts ffmpeg
+EG := $(VENV)/bin/emogesture
+# ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH export
+DEMO_APT := ffmpeg
+TEST_APT := espeak-ng flite festival festvox-us-slt-hts ffmpeg blender
 DEMO_DIR ?= outputs/demo
+CLIPS := src/emogesture/assets/demo
+DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \
+	$(DEMO_DIR)/talk_emotion-angry_seed0_0.mp4 $(DEMO_DIR)/talk_style-angry_seed0_0.mp4
 
-.PHONY: demo test setup apt venv lint clean
+.PHONY: demo test model setup venv lint clean apt-demo apt-test
 
-demo: setup
-	$(VENV)/bin/emogesture corpus --out $(DEMO_DIR)/corpus --resume
-	$(VENV)/bin/emogesture prepare $(DEMO_DIR)/corpus --out $(DEMO_DIR)/cache
+demo: apt-demo $(VENV)/.installed $(DEMO_FILES)
+	@echo; echo "demo animations (npz for the SMPL-X add-on, bvh for Blender/Unity/Maya, mp4 to watch):"
+	@ls -1 $(DEMO_DIR)/talk*_seed0_0.* | sed 's/^/  /'
 
-test: setup
+# one generate command per demo animation; an existing one is kept (delete it to make it again)
+$(DEMO_DIR)/talk_seed0_0.mp4:
+	$(EG) generate $(CLIPS)/talk.flac -o $(DEMO_DIR)
+$(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4:
+	$(EG) generate $(CLIPS)/talk.flac -o $(DEMO_DIR) --emotion happiness
+$(DEMO_DIR)/talk_emotion-angry_seed0_0.mp4:
+	$(EG) generate $(CLIPS)/talk.flac -o $(DEMO_DIR) --emotion-from $(CLIPS)/angry.flac
+$(DEMO_DIR)/talk_style-angry_seed0_0.mp4:
+	$(EG) generate $(CLIPS)/talk.flac -o $(DEMO_DIR) --style-from $(CLIPS)/angry.flac
+
+test: apt-test $(VENV)/.installed
 	$(PY) -m pytest -q tests
 
-setup: apt $(VENV)/.installed
+model: apt-test $(VENV)/.installed
+	bash experiments/bundled_model.sh
 
-# System speech engines and ffmpeg; installed only when one is missing.
-apt:
+setup: apt-test $(VENV)/.installed
+
+# Debian packages, installed only when one is missing.
+define apt_install
 	@missing=""; \
-	for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	for p in $(1); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
 	if [ -n "$$missing" ]; then \
 	  echo "installing apt packages:$$missing"; \
 	  SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing >/dev/null; \
 	fi
+endef
+apt-demo:
+	$(call apt_install,$(DEMO_APT))
+apt-test:
+	$(call apt_install,$(TEST_APT))
 
 # The CPU build of torch first (pinned), so the package's torch range adds nothing.
 $(VENV)/.installed: pyproject.toml

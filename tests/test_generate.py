@@ -137,9 +137,9 @@ def test_seam_candidates_avoid_the_worst_seam(runs):
 def test_cli_errors_are_one_line(runs, tmp_path):
     bad = tmp_path / "bad.wav"
     bad.write_bytes(b"not audio at all")
-    silent = tmp_path / "silent.wav"
-    sf.write(silent, np.zeros(32000, np.float32), 16000)
-    for audio, needle in ((bad, "bad.wav"), (silent, "silent"), (tmp_path / "none.wav", "none.wav")):
+    short = tmp_path / "short.wav"
+    sf.write(short, 0.1 * np.ones(1600, np.float32), 16000)
+    for audio, needle in ((bad, "bad.wav"), (short, "too short"), (tmp_path / "none.wav", "none.wav")):
         out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(audio), "--model",
                               str(runs / "gesture"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
         assert out.returncode == 2 and needle in out.stderr and len(out.stderr.strip().splitlines()) == 1

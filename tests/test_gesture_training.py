@@ -36,7 +36,7 @@ def trained(tmp_path_factory):
     prepare(d / "root", d / "cache", progress=False)
     cache = open_cache(d / "cache")
     cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
-    save_model(d / "speech", "speech", SpeechDisentangler(cfg), cfg, speech_model_extra(cache, [1, 2], 0))
+    save_model(d / "speech", "speech", SpeechDisentangler(cfg), cfg, speech_model_extra(cache, [1, 2], 0, ["train"]))
     out = subprocess.run(cli("train", "extractor", "--data", d / "cache", "--out", d / "ext", "--steps", 5, "--quiet"),
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-2000:]

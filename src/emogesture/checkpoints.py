@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from safetensors import SafetensorError
+import torch
 from safetensors.torch import load_file, save_file
 from torch import nn
 
@@ -111,17 +112,21 @@ def save_model(
     *,
     name: str = "model",
     overwrite: bool = True,
+    weights_dtype: torch.dtype | None = None,
 ) -> Path:
     """Write ``model``'s weights and ``{kind, config, extra, version}``; returns the JSON path.
 
     ``extra`` holds JSON-safe data stored with the model (normalisation statistics, label names,
-    per-class mean latents, ...).
+    per-class mean latents, ...). ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
+    tensors in that type (they are cast back to the model's type when loaded).
     """
     weights, meta_path = model_paths(path, name)
     weights.parent.mkdir(parents=True, exist_ok=True)
     if not overwrite and (weights.exists() or meta_path.exists()):
         raise OutputExistsError(meta_path)
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
+    if weights_dtype is not None:
+        state = {k: v.to(weights_dtype) if v.is_floating_point() else v for k, v in state.items()}
     _atomic_write(weights, lambda tmp: save_file(state, str(tmp), metadata={"format": FORMAT, "kind": kind}))
     meta = {
         "format": FORMAT,
@@ -187,3 +192,59 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         )
     model.to(device).eval()
     return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path)
+
+
+CHECKSUMS = "SHA256SUMS"
+
+
+def write_checksums(folder: str | PathLike[str]) -> Path:
+    """Write ``SHA256SUMS`` (``sha256sum`` format) over every other file of ``folder``."""
+    folder = Path(folder)
+    lines = [f"{_sha256(p)}  {p.name}" for p in sorted(folder.iterdir()) if p.is_file() and p.name != CHECKSUMS
+             and not p.name.startswith(".")]
+    return write_text_atomic(folder / CHECKSUMS, "\n".join(lines) + "\n")
+
+
+def verify_checksums(folder: str | PathLike[str]) -> list[str]:
+    """Check every file listed in ``folder/SHA256SUMS``; returns the names checked, raises on a mismatch."""
+    folder = Path(folder)
+    sums = folder / CHECKSUMS
+    if not sums.is_file():
+        raise InputFileError(sums, "checksum list not found")
+    names = []
+    for line in sums.read_text().splitlines():
+        if not line.strip():
+            continue
+        digest, name = line.split(maxsplit=1)
+        path = folder / name.strip()
+        if not path.is_file():
+            raise InputFileError(path, f"listed in {CHECKSUMS} but missing")
+        if _sha256(path) != digest:
+            raise InputFileError(path, f"checksum differs from {CHECKSUMS} (the file was changed or damaged)")
+        names.append(name.strip())
+    return names
+
+
+def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], extractor: str | PathLike[str] | None,
+                  out: str | PathLike[str], overwrite: bool = False,
+                  weights_dtype: torch.dtype | None = torch.float16) -> Path:
+    """Copy a speech model, the gesture model trained on it and (optionally) an extractor into one folder
+    as ``speech.*``, ``gesture.*``, ``extractor.*`` with ``weights_dtype`` weights; the gesture model then
+    names its speech model by the relative path ``speech.json``. Writes ``SHA256SUMS``; returns ``out``."""
+    out = Path(out)
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise OutputExistsError(out)
+    out.mkdir(parents=True, exist_ok=True)
+    s = load_model(speech, "speech")
+    g = load_model(gesture, "gesture")
+    if g.extra.get("speech_weights_sha256") != s.meta["weights_sha256"]:
+        raise InputFileError(s.path, f"is not the speech model {g.path} was trained with")
+    save_model(out, "speech", s.model, s.config, s.extra, name="speech", weights_dtype=weights_dtype)
+    speech_sha = read_meta(out, "speech", "speech")["weights_sha256"]
+    extra = {**g.extra, "speech_model": "speech.json", "speech_weights_sha256": speech_sha}
+    save_model(out, "gesture", g.model, g.config, extra, name="gesture", weights_dtype=weights_dtype)
+    if extractor is not None:
+        x = load_model(extractor, "extractor")
+        save_model(out, "extractor", x.model, x.config, x.extra, name="extractor", weights_dtype=weights_dtype)
+    write_checksums(out)
+    return out

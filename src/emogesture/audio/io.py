@@ -38,6 +38,31 @@ def _one_line(text: str, limit: int = 200, strip_prefix: str = "") -> str:
     return line if len(line) <= limit else line[: limit - 3] + "..."
 
 
+def _check_wav_length(path: Path) -> None:
+    """A RIFF/WAVE file whose ``data`` chunk claims more bytes than the file holds is truncated (libsndfile
+    would silently read what is there). Streaming placeholders (0 or 0xFFFFFFFF) are accepted."""
+    try:
+        size = path.stat().st_size
+        with path.open("rb") as fh:
+            head = fh.read(12)
+            if len(head) < 12 or head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+                return
+            offset = 12
+            while offset + 8 <= size:
+                fh.seek(offset)
+                chunk = fh.read(8)
+                cid, length = chunk[:4], int.from_bytes(chunk[4:8], "little")
+                if cid == b"data":
+                    available = size - offset - 8
+                    if length not in (0, 0xFFFFFFFF) and length > available:
+                        raise InputFileError(path, f"truncated WAV: its header declares {length} bytes of audio "
+                                             f"but the file holds {available}")
+                    return
+                offset += 8 + length + (length & 1)
+    except OSError:
+        return  # reading proper reports it
+
+
 def _read_soundfile(path: Path) -> tuple[np.ndarray, int]:
     data, sr = sf.read(str(path), dtype="float32", always_2d=True)
     return data, int(sr)
@@ -129,6 +154,7 @@ def load_audio(
         raise InputFileError(p, f"cannot read file ({err.strerror or err})") from None
     if not first:
         raise InputFileError(p, "empty file (0 bytes)")
+    _check_wav_length(p)
     try:
         data, sr = _read_soundfile(p)
     except Exception as err:  # libsndfile's errors are RuntimeError / TypeError / ValueError subclasses
@@ -147,9 +173,11 @@ def load_audio(
 
 
 def check_speech(
-    waveform: np.ndarray, sample_rate: int, path: str | PathLike[str], min_seconds: float = 1.0
-) -> None:
-    """Reject audio that cannot drive gesture generation: shorter than ``min_seconds`` or silent.
+    waveform: np.ndarray, sample_rate: int, path: str | PathLike[str], min_seconds: float = 1.0,
+    allow_silence: bool = False,
+) -> bool:
+    """Reject audio that cannot drive gesture generation: shorter than ``min_seconds``, or silent
+    (unless ``allow_silence``). Returns whether the audio is silent.
 
     Silent means a peak magnitude below 1e-4 or an RMS below 1e-5 (after the mean removal of
     :func:`load_audio`, so a pure DC offset is silent too).
@@ -167,5 +195,7 @@ def check_speech(
         raise InputFileError(path, "audio contains NaN or infinite samples")
     peak = float(np.abs(w).max())
     rms = float(np.sqrt(np.mean(w * w)))
-    if peak < _SILENCE_PEAK or rms < _SILENCE_RMS:
+    silent = peak < _SILENCE_PEAK or rms < _SILENCE_RMS
+    if silent and not allow_silence:
         raise InputFileError(path, f"audio is silent (peak {peak:.1e}, RMS {rms:.1e})")
+    return silent

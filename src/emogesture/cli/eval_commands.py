@@ -37,8 +37,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
     p.set_defaults(func=run_evaluate_gesture)
 
-    info = sub.add_parser("model-info", help="parameter counts and FLOPs of a model preset")
-    isub = info.add_subparsers(dest="model", required=True, metavar="MODEL")
+    info = sub.add_parser("model-info", help="the bundled model, or parameter counts and FLOPs of a preset",
+                          description="Without MODEL: the bundled model (files, checksums, training, numbers). "
+                          "With MODEL: parameter counts and FLOPs of a preset.")
+    info.set_defaults(func=run_model_info_bundled)
+    isub = info.add_subparsers(dest="model", required=False, metavar="MODEL")
     p = isub.add_parser("speech", help="the speech disentanglement model")
     p.add_argument("--preset", default="paper", choices=["paper", "tiny"])
     p.add_argument("--speakers", type=int, default=30, help="speaker classes (default 30, BEAT)")
@@ -93,6 +96,34 @@ def _named_paths(items: list[str], flag: str, shape: str) -> dict[str, Path]:
             raise EmogestureError(f"{flag}: the name {name!r} is given twice")
         out[name] = Path(path)
     return out
+
+
+def run_model_info_bundled(args: argparse.Namespace) -> int:
+    import json
+
+    from emogesture.assets import BUNDLED_MODEL
+    from emogesture.checkpoints import load_model, verify_checksums
+
+    names = verify_checksums(BUNDLED_MODEL)
+    print(f"bundled model: {BUNDLED_MODEL}")
+    print(f"files (checksums match {BUNDLED_MODEL / 'SHA256SUMS'}):")
+    for name in names:
+        print(f"  {name:<26}{(BUNDLED_MODEL / name).stat().st_size / 1e6:>8.2f} MB")
+    for kind in ("speech", "gesture", "extractor"):
+        if not (BUNDLED_MODEL / f"{kind}.json").is_file():
+            continue
+        m = load_model(BUNDLED_MODEL / f"{kind}.json", kind)
+        params = sum(p.numel() for p in m.model.parameters())
+        print(f"{kind:<10} {params:>10,} parameters, trained {m.extra.get('step', '?')} steps"
+              + (f" on {'+'.join(m.extra['train_splits'])}" if "train_splits" in m.extra else ""))
+    card = BUNDLED_MODEL / "card.json"
+    if card.is_file():
+        numbers = json.loads(card.read_text())
+        print(f"held-out numbers ({numbers.get('split', 'test')} split of the default synthetic corpus; "
+              f"see {BUNDLED_MODEL / 'MODEL_CARD.md'}):")
+        for key, value in numbers.get("metrics", {}).items():
+            print(f"  {key:<30}{value:>10.3f}" if isinstance(value, (int, float)) else f"  {key:<30}{value:>10}")
+    return 0
 
 
 def run_model_info_speech(args: argparse.Namespace) -> int:

@@ -57,6 +57,25 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scale", type=float, default=1.0, help="residual noise scale stored with the model (default 1)")
     p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
     p.set_defaults(func=run_calibrate_gesture)
+    p = csub.add_parser("speech", help="the speech model's emotion perception (for generate --emotion auto)")
+    p.add_argument("--model", required=True, type=Path, help="run folder of `emogesture train speech`")
+    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
+    p.add_argument("--out", required=True, type=Path, help="folder for the calibrated copy of the model")
+    p.add_argument("--split", default="val", help="held-out split for the trust threshold (default val)")
+    p.add_argument("--quantile", type=float, default=0.99,
+                   help="quantile of the held-out distances used as the trust threshold (default 0.99)")
+    p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
+    p.set_defaults(func=run_calibrate_speech)
+
+    p = sub.add_parser("bundle", help="put a speech, gesture and extractor model into one folder (float16)",
+                       description="Copy the models into OUT as speech.*, gesture.*, extractor.* with float16 "
+                       "weights and a SHA256SUMS list, as the package's bundled model is stored.")
+    p.add_argument("--speech", required=True, type=Path, help="speech model (run folder or .json)")
+    p.add_argument("--gesture", required=True, type=Path, help="gesture model trained on that speech model")
+    p.add_argument("--extractor", type=Path, help="motion feature extractor of the evaluation suite")
+    p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="write into a folder that is not empty")
+    p.set_defaults(func=run_bundle)
 
 
 def run_train_speech(args: argparse.Namespace) -> int:
@@ -94,6 +113,25 @@ def run_calibrate_gesture(args: argparse.Namespace) -> int:
     print(f"gesture model calibrated on {stats['windows']} {args.split} windows (residual variance "
           f"{stats['residual_variance']:.4f}, latent variance {stats['latent_variance']:.4f}, "
           f"shrinkage {stats['shrinkage']:.3f}): {args.out / 'model.json'}")
+    return 0
+
+
+def run_calibrate_speech(args: argparse.Namespace) -> int:
+    from emogesture.pipeline.perception import calibrate_perception_run
+
+    p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite)
+    print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows, threshold "
+          f"{p.threshold:.3f} (quantile {p.info['quantile']:g} of {p.info['held_out_windows']} {args.split} windows; "
+          f"median {p.info['held_out_distance_median']:.3f}): {args.out / 'model.json'}")
+    return 0
+
+
+def run_bundle(args: argparse.Namespace) -> int:
+    from emogesture.checkpoints import bundle_models
+
+    out = bundle_models(args.speech, args.gesture, args.extractor, args.out, args.overwrite)
+    for path in sorted(out.iterdir()):
+        print(f"{path}  ({path.stat().st_size / 1e6:.2f} MB)")
     return 0
 
 

@@ -39,6 +39,7 @@ from emogesture.pipeline.conditions import (
     window_seeds,
 )
 from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline, largest_joint_jumps
+from emogesture.pipeline.perception import auto_emotion, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 FPS = 30
@@ -195,6 +196,9 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
     check("GA / GA(GT) >= 0.7", ours["GA"] / gt["GA"], 0.7)
     if edit_row is not None:
         check("GA(emotion edit) / GA(GT) >= 0.5", rows[edit_row]["GA"] / gt["GA"], 0.5)
+    if f"{model}, emotion auto" in rows:
+        check("|GA(emotion auto) - GA| <= 0.03", abs(rows[f"{model}, emotion auto"]["GA"] - ours["GA"]), 0.03,
+              higher_is_better=False)
     if np.isfinite(gt["BA"]):
         check("BA / BA(GT) >= 0.9", ours["BA"] / gt["BA"], 0.9)
     for name in ablations:
@@ -236,15 +240,23 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
     main = next(iter(models))
     edit_model = edit_model or main
     sources: dict = {}
+    auto_trust: dict = {}
     loaded = {}
     for name, run in models.items():
         gesture = load_model(run, "gesture")
         loaded[name] = gesture
         variant = gesture.extra.get("variant", gesture.config.variant)
-        speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(gesture.extra["speech_model"])
+        speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
         conds = window_conditions(variant, cache, split, speech)
         seeds = window_seeds(seed, len(windows))
         sources[name] = generate_from_conditions(gesture, conds, seeds)
+        perception = perception_of(speech) if name == main and speech is not None else None
+        if perception is not None:  # `generate --emotion auto`: untrusted emotion latents blended toward neutral
+            trust = perception.trust(conds[1])
+            auto_trust[f"{name}, emotion auto"] = {"windows": int(len(trust)), "trusted": int((trust >= 1).sum()),
+                                                   "mean_trust": float(trust.mean())}
+            sources[f"{name}, emotion auto"] = generate_from_conditions(
+                gesture, [conds[0], auto_emotion(conds[1], perception), conds[2]], seeds)
         if name == edit_model:
             known = [EMOTIONS.index(k) for k in gesture.extra.get("emotion_latent_means", {})]
             targets = edit_targets(windows.emotion, seed, known)
@@ -273,7 +285,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         "split": split, "models": {k: str(v) for k, v in models.items()}, "ours": main, "edit_model": edit_model,
         "steps": {k: g.extra.get("step") for k, g in loaded.items()},
         "variants": {k: g.config.variant for k, g in loaded.items()},
-        "table": table, "prior_reconstruction": recon, "long_audio": long,
+        "table": table, "prior_reconstruction": recon, "long_audio": long, "emotion_auto_trust": auto_trust,
         "checks": gesture_checks(table["rows"], main, ablations, edit_row, recon, long),
     }
     write_text_atomic(json_path, json.dumps(result, indent=1))

@@ -101,6 +101,29 @@ def interpolate_rotations(a: torch.Tensor, b: torch.Tensor, w: torch.Tensor | fl
     return matrix_to_rot6d(out) if six_d else out
 
 
+def matrix_to_euler_zyx(matrix: torch.Tensor) -> torch.Tensor:
+    """Rotation matrices ``[..., 3, 3]`` -> Euler angles ``[..., 3]`` (radians) as ``(z, y, x)`` with
+    ``R = Rz(z) @ Ry(y) @ Rx(x)`` (BVH's ``Zrotation Yrotation Xrotation`` channel order); ``y`` in
+    ``[-pi/2, pi/2]``. At gimbal lock (``|y| = pi/2``) ``x`` is 0 and ``z`` carries the rest."""
+    _check_last(matrix, (3, 3), "matrix")
+    m = matrix
+    y = torch.asin((-m[..., 2, 0]).clamp(-1.0, 1.0))
+    cos_y = torch.sqrt(m[..., 0, 0] ** 2 + m[..., 1, 0] ** 2)
+    regular = cos_y > 1e-6
+    z = torch.where(regular, torch.atan2(m[..., 1, 0], m[..., 0, 0]), torch.atan2(-m[..., 0, 1], m[..., 1, 1]))
+    x = torch.where(regular, torch.atan2(m[..., 2, 1], m[..., 2, 2]), torch.zeros_like(y))
+    return torch.stack([z, y, x], dim=-1)
+
+
+def euler_zyx_to_matrix(euler: torch.Tensor) -> torch.Tensor:
+    """Euler angles ``[..., 3]`` as ``(z, y, x)`` radians -> ``Rz(z) @ Ry(y) @ Rx(x)`` ``[..., 3, 3]``."""
+    _check_last(euler, (3,), "euler")
+    z, y, x = euler.unbind(-1)
+    axes = torch.eye(3, dtype=euler.dtype, device=euler.device)
+    return (axis_angle_to_matrix(z[..., None] * axes[2]) @ axis_angle_to_matrix(y[..., None] * axes[1])
+            @ axis_angle_to_matrix(x[..., None] * axes[0]))
+
+
 def _skew(v: torch.Tensor) -> torch.Tensor:
     """Cross-product matrices ``[..., 3, 3]`` of vectors ``[..., 3]``."""
     x, y, z = v.unbind(-1)

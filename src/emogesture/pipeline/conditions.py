@@ -9,6 +9,8 @@ the evaluation (generation, reconstruction) alike.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import torch
 
@@ -70,7 +72,8 @@ def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
 
 @torch.no_grad()
 def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int], batch_size: int = 64,
-                   num_inference_steps: int | None = None, residual: bool = True) -> torch.Tensor:
+                   num_inference_steps: int | None = None, residual: bool = True,
+                   progress: Callable[[int], None] | None = None) -> torch.Tensor:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> sampled motion latents ``[W, 256]``
     (on the model's device); see :func:`generate_from_conditions`."""
     model = gesture.model.eval()
@@ -91,6 +94,8 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
             z = add_residual_noise(z, model.latent_residual_tril, generators, cfg.diffusion.residual_scale)
         out.append(z)
+        if progress is not None:
+            progress(len(z))
     return torch.cat(out)
 
 
@@ -118,7 +123,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
 
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
                              batch_size: int = 64, num_inference_steps: int | None = None,
-                             residual: bool = True) -> np.ndarray:
+                             residual: bool = True, progress: Callable[[int], None] | None = None) -> np.ndarray:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
@@ -126,7 +131,7 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
     the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
     noise (``diffusion.residual_scale``) unless ``residual=False``.
     """
-    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual)
+    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress)
     return decode_latents(gesture, z, gesture.config.vae.frames, batch_size)
 
 

@@ -17,6 +17,7 @@ from a second audio (window ``i`` takes that audio's window ``i mod n``), or the
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from os import PathLike
@@ -25,12 +26,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from emogesture.assets import bundled_model_file
 from emogesture.audio import check_speech, load_audio
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import generate_from_conditions
+from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
 
@@ -45,6 +48,9 @@ class EditRequest:
     emotion_label: str | None = None
     emotion_weight: float = 1.0  # 0 = the speech's own emotion, 1 = the target emotion
     style_from: np.ndarray | None = None  # [n, 256]
+
+
+EMOTION_MODES = ("auto", "own")
 
 
 def crossfade_ramp(overlap: int) -> np.ndarray:
@@ -160,21 +166,26 @@ class GesturePipeline:
         self.body = SkeletonBody()  # joint positions for choosing seam candidates
 
     @classmethod
-    def from_run(cls, run: str | PathLike[str], speech_run: str | PathLike[str] | None = None,
+    def from_run(cls, run: str | PathLike[str] | None = None, speech_run: str | PathLike[str] | None = None,
                  device: str = "cpu") -> "GesturePipeline":
-        gesture = load_model(run, "gesture", device=device)
-        speech_path = speech_run or gesture.extra.get("speech_model")
-        if speech_path is None:
-            raise InputFileError(gesture.path, "names no speech model; pass one")
-        speech = SpeechLatentEncoder.from_run(speech_path, device)
+        """A gesture model's run folder (or model JSON; None = the bundled model) and its speech model
+        (default: the one the gesture model names, a path relative to the gesture model's folder or absolute)."""
+        gesture = load_model(run if run is not None else bundled_model_file("gesture"), "gesture", device=device)
+        if speech_run is not None:
+            speech = SpeechLatentEncoder.from_run(speech_run, device)
+        else:
+            speech = SpeechLatentEncoder.of_gesture_model(gesture, device)
         want = gesture.extra.get("speech_weights_sha256")
         if want and speech.loaded.meta["weights_sha256"] != want:
             raise InputFileError(speech.loaded.path, "is not the speech model this gesture model was trained with")
         return cls(gesture, speech, device)
 
     def load_speech(self, path: str | PathLike[str]) -> np.ndarray:
+        """A speech file -> 16 kHz waveform ``[N]``; at least 1 s long. Silence is allowed (a calm
+        animation); a note says so."""
         wave, sr = load_audio(path)
-        check_speech(wave, sr, path)
+        if check_speech(wave, sr, path, allow_silence=True):
+            print(f"note: {path} is silent; the animation will be calm", file=sys.stderr)
         return wave
 
     def joint_jumps(self, features: np.ndarray) -> np.ndarray:
@@ -183,11 +194,25 @@ class GesturePipeline:
             joints = self.body.forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), self.spec)
         return largest_joint_jumps(joints.numpy())
 
-    def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0) -> tuple[EncodedWindows, list[float]]:
-        return self.speech.encode(waveform, 16000, hop_seconds)
+    def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0, progress: Callable[[int], None] | None = None
+               ) -> tuple[EncodedWindows, list[float]]:
+        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s)."""
+        return self.speech.encode(waveform, 16000, hop_seconds, progress)
 
-    def conditions(self, enc: EncodedWindows, edit: EditRequest | None) -> list[np.ndarray]:
+    def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str) -> PerceivedEmotion:
+        """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""
+        return perceive(enc, starts_s, perception_of(self.speech), source)
+
+    def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto"
+                   ) -> list[np.ndarray]:
+        """Condition latents ``[c, e, s]`` ``[W, 256]`` of encoded windows: ``emotion_mode`` ``auto``
+        blends untrusted emotion latents toward neutral (:mod:`emogesture.pipeline.perception`), ``own``
+        keeps them; then the edit, if any."""
+        if emotion_mode not in EMOTION_MODES:
+            raise EmogestureError(f"emotion mode {emotion_mode!r}: choose one of {', '.join(EMOTION_MODES)}")
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
+        if emotion_mode == "auto":
+            e = auto_emotion(e, perception_of(self.speech))
         if edit is not None:
             n = len(c)
             target = None
@@ -204,21 +229,26 @@ class GesturePipeline:
                 s = edit.style_from[np.arange(n) % len(edit.style_from)].astype(np.float32)
         return [c, e, s]
 
-    def generate_windows(self, conditions: list[np.ndarray], seeds: list[int]) -> np.ndarray:
+    def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],
+                         progress: Callable[[int], None] | None = None) -> np.ndarray:
         """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``."""
-        return generate_from_conditions(self.loaded, conditions, seeds)
+        return generate_from_conditions(self.loaded, conditions, seeds, progress=progress)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
-                 hop_seconds: float = 8.0, seam_candidates: int = 4) -> list[SMPLXSequence]:
+                 hop_seconds: float = 8.0, seam_candidates: int = 4, emotion_mode: str = "auto",
+                 encoded: tuple[EncodedWindows, list[float]] | None = None,
+                 progress: Callable[[int], None] | None = None) -> list[SMPLXSequence]:
         """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
 
         ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
         worst seam moves least (see the module docstring); 1 = every window independent.
+        ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
+        hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
         """
         if seam_candidates < 1:
             raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
-        enc, starts_s = self.encode(waveform, hop_seconds)
-        conds = self.conditions(enc, edit)
+        enc, starts_s = encoded if encoded is not None else self.encode(waveform, hop_seconds)
+        conds = self.conditions(enc, edit, emotion_mode)
         num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
         n, k_cand = len(starts), seam_candidates
@@ -230,7 +260,7 @@ class GesturePipeline:
             # candidate 0 of window i keeps the seed it has with one candidate
             seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                      for i, c in pairs]
-            drawn = self.generate_windows(picked, seeds)
+            drawn = self.generate_windows(picked, seeds, progress)
             candidates = drawn.reshape(n, k_cand, *drawn.shape[1:])
             feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
@@ -244,5 +274,6 @@ class GesturePipeline:
         return enc
 
 
-def output_name(speech: Path, seed: int, sample: int, edit_tag: str = "") -> str:
-    return f"{speech.stem}{edit_tag}_seed{seed}_{sample}.npz"
+def output_stem(speech: Path, seed: int, sample: int, edit_tag: str = "") -> str:
+    """The file name, without extension, of one generated sample: ``<speech stem><edit>_seed<seed>_<sample>``."""
+    return f"{speech.stem}{edit_tag}_seed{seed}_{sample}"

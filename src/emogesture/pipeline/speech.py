@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -50,13 +51,24 @@ class SpeechLatentEncoder:
     def from_run(cls, path: str | PathLike[str], device: str = "cpu") -> "SpeechLatentEncoder":
         return cls(load_model(path, "speech", device=device), device)
 
+    @classmethod
+    def of_gesture_model(cls, gesture: LoadedModel, device: str = "cpu") -> "SpeechLatentEncoder":
+        """The speech model a gesture model names: an absolute path, or one relative to the gesture
+        model's folder (as in the bundled model)."""
+        from emogesture.errors import InputFileError
+
+        name = gesture.extra.get("speech_model")
+        if name is None:
+            raise InputFileError(gesture.path, "names no speech model; pass one")
+        return cls.from_run(Path(gesture.path).parent / name, device)
+
     @property
     def speakers(self) -> list[int]:
         return list(self.loaded.extra["speakers"])
 
     @torch.no_grad()
-    def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None
-                       ) -> EncodedWindows:
+    def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None,
+                       progress: Callable[[int], None] | None = None) -> EncodedWindows:
         """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
 
         ``renormalise=(mean, std)``: the windows were normalised with these statistics (another cache's);
@@ -71,10 +83,12 @@ class SpeechLatentEncoder:
             enc = self.model.encode(x)
             for store, value in zip(parts, enc):
                 store.append(value.float().cpu().numpy())
+            if progress is not None:
+                progress(len(x))
         return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in parts))
 
-    def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0
-               ) -> tuple[EncodedWindows, list[float]]:
+    def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0,
+               progress: Callable[[int], None] | None = None) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
@@ -83,7 +97,7 @@ class SpeechLatentEncoder:
         starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
         frames = [int(round(s * FBANK_RATE)) for s in starts]
         windows = fbank_windows(fb, frames, self.window_frames)
-        return self.encode_windows(np.asarray(windows)), starts
+        return self.encode_windows(np.asarray(windows), progress=progress), starts
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
         """Latents of every window of a prepared split, cached next to the model file.

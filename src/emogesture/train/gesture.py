@@ -294,7 +294,7 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     gesture = load_model(run, "gesture")
     cache = open_cache(cache_dir)
     variant = gesture.config.variant
-    speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(gesture.extra["speech_model"])
+    speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
     windows = cache.split(split)
     stats = calibrate_residual(gesture, window_conditions(variant, cache, split, speech), windows.motion, seed=seed)
     stats.update(step=gesture.extra.get("step"), split=split)

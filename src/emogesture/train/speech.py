@@ -145,7 +145,7 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
 
 
-def speech_model_extra(cache, speakers: list[int], step: int) -> dict:
+def speech_model_extra(cache, speakers: list[int], step: int, train_splits: list[str]) -> dict:
     """What a speech model file carries besides weights: label tables and fbank statistics."""
     return {
         "emotions": list(EMOTIONS),
@@ -153,6 +153,7 @@ def speech_model_extra(cache, speakers: list[int], step: int) -> dict:
         "fbank_mean": cache.stats["fbank_mean"],
         "fbank_std": cache.stats["fbank_std"],
         "prepare_config": cache.manifest["config"],
+        "train_splits": list(train_splits),
         "step": step,
     }
 
@@ -170,6 +171,7 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     module = SpeechModule(to_dict(config), seed)
 
     def export(m: SpeechModule, run_dir: Path) -> None:
-        save_model(run_dir, "speech", m.averaged, m.cfg.model, speech_model_extra(data.cache, data.speakers, m.global_step))
+        extra = speech_model_extra(data.cache, data.speakers, m.global_step, config.train_splits)
+        save_model(run_dir, "speech", m.averaged, m.cfg.model, extra)
 
     return data, module, export

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Rebuilds the model bundled with the package (src/emogesture/assets/model/) from scratch, with the
+# project's own recipe, on the default synthetic corpus; `make model` runs it. Every step resumes when
+# re-run (finished trainings are not redone). About 75 min on 2 CPU cores.
+#   1. the speech model (tiny, --losses adversarial, 1300 steps) on the train texts only, so that the
+#      val texts stay unseen for the calibrations below and the test texts for the model card;
+#   2. the evaluation suite's motion feature extractor M (600 steps), beside it;
+#   3. the gesture model (tiny, joint, 1200 steps; its residual noise is calibrated on val);
+#   4. the speech model's emotion perception (class means on train, trust threshold on val);
+#   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS;
+#   6. the bundle scored on the test texts (speech and gesture reports, --emotion auto vs own), and
+#      the model card written from those numbers; then the bundle is copied into the package.
+# Usage: experiments/bundled_model.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source experiments/common.sh
+RUN=$WORK/bundled
+REPORT=experiments/reports/bundled_model
+mkdir -p "$RUN" "$REPORT"
+
+timed() {  # name command... : runs a training step and appends its wall time to $RUN/times.txt
+    local name=$1 start
+    shift
+    start=$(date +%s)
+    "$@"
+    echo "$name: $(( $(date +%s) - start )) s" >> "$RUN/times.txt"
+}
+# the speech model and the extractor side by side, one thread each (two for one left alone)
+todo=()
+grep -qs '"step": 1300' "$RUN/speech/model.json" || todo+=(speech)
+grep -qs '"step": 600' "$RUN/extractor/model.json" || todo+=(extractor)
+threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
+pids=()
+for model in "${todo[@]}"; do
+    if [ "$model" = speech ]; then
+        OMP_NUM_THREADS=$threads timed speech $EG train speech --data "$CACHE" --out "$RUN/speech" \
+            --losses adversarial --steps 1300 --checkpoint-every 100 --quiet &
+    else
+        OMP_NUM_THREADS=$threads timed extractor $EG train extractor --data "$CACHE" --out "$RUN/extractor" \
+            --steps 600 --checkpoint-every 100 --quiet &
+    fi
+    pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid"; done
+grep -qs '"step": 1200' "$RUN/gesture/model.json" || timed gesture $EG train gesture --data "$CACHE" --speech "$RUN/speech" \
+    --out "$RUN/gesture" --steps 1200 --checkpoint-every 100 --quiet
+
+# 4. emotion perception (train means, val threshold) on a copy of the speech model; 5. the bundle
+[ -f "$RUN/speech_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/speech" --data "$CACHE" \
+    --out "$RUN/speech_calibrated"
+BUNDLE=$RUN/bundle
+$EG bundle --speech "$RUN/speech_calibrated" --gesture "$RUN/gesture" --extractor "$RUN/extractor" --out "$BUNDLE" \
+    --overwrite
+
+# 6. the bundle, as shipped (float16), scored once on the test texts; the card; into the package
+$EG evaluate speech "$BUNDLE/speech.json" --data "$CACHE" --split test --out "$REPORT/speech" --overwrite
+$EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split test --out "$REPORT/gesture" \
+    --overwrite --model "ours=$BUNDLE/gesture.json"
+.venv/bin/python experiments/perception_shift.py "$BUNDLE/speech.json" "$CACHE" "$REPORT"
+cp "$RUN/times.txt" "$REPORT/training_time.txt"
+.venv/bin/python experiments/model_card.py "$BUNDLE" "$REPORT" "$RUN/times.txt"
+ASSETS=src/emogesture/assets/model
+mkdir -p "$ASSETS"
+rm -f "$ASSETS"/*
+cp "$BUNDLE"/{speech,gesture,extractor}.{json,safetensors} "$BUNDLE"/{MODEL_CARD.md,card.json,SHA256SUMS} "$ASSETS/"
+$EG model-info

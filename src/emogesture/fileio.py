@@ -1,0 +1,64 @@
+"""Writing user-visible files whole or not at all: a temporary file beside the target, fsync, rename."""
+
+from __future__ import annotations
+
+import os
+import secrets
+from collections.abc import Iterator
+from contextlib import contextmanager
+from os import PathLike
+from pathlib import Path
+
+from emogesture.errors import EmogestureError, OutputExistsError
+
+
+def check_output(path: str | PathLike[str], overwrite: bool = False) -> Path:
+    """Refuse an output ``path`` that exists (unless ``overwrite``) or is a folder; returns it as a Path."""
+    path = Path(path)
+    if path.is_dir():
+        raise EmogestureError(f"{path}: is a folder, not a file name for the output")
+    if path.exists() and not overwrite:
+        raise OutputExistsError(path)
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise EmogestureError(f"{path}: cannot write there, {parent} is a file, not a folder")
+            break
+    return path
+
+
+@contextmanager
+def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterator[Path]:
+    """Yield a temporary path in ``path``'s folder; when the block ends without error, the file written
+    there is flushed to disk and renamed to ``path`` (so readers never see a partial file). On error
+    the temporary file is removed and ``path`` is left as it was.
+
+    Raises:
+        OutputExistsError: ``path`` exists and ``overwrite`` is False (checked before and after).
+        EmogestureError: the folder cannot be made or the file cannot be written (one line).
+    """
+    path = check_output(path, overwrite)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise EmogestureError(f"{path}: cannot create its folder ({err.strerror or err})") from None
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        yield tmp
+        if not tmp.is_file():
+            raise EmogestureError(f"{path}: nothing was written")
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        if path.exists() and not overwrite:  # appeared while we were writing
+            raise OutputExistsError(path)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as err:
+        if isinstance(err, OutputExistsError):
+            raise
+        raise EmogestureError(f"{path}: cannot write ({err.strerror or err})") from None
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -1,0 +1,190 @@
+"""The model shipped inside the package, and `emogesture generate` as a user meets it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+import torch
+
+from emogesture.assets import BUNDLED_MODEL, DEMO_CLIPS, bundled_model_file
+from emogesture.checkpoints import load_model, verify_checksums
+from emogesture.data.beat import EMOTIONS
+from emogesture.eval.metrics import wrist_speed
+from emogesture.motion import SkeletonBody
+from emogesture.pipeline.generate import EditRequest, GesturePipeline
+
+KINDS = ("speech", "gesture", "extractor")
+
+
+@pytest.fixture(scope="module")
+def pipe():
+    return GesturePipeline.from_run()
+
+
+@pytest.fixture(scope="module")
+def clip30(tmp_path_factory) -> Path:
+    """30.0 s of the shipped synthetic speech (the two demo clips back to back, cut)."""
+    a, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    b, _ = sf.read(DEMO_CLIPS / "angry.flac", dtype="float32")
+    path = tmp_path_factory.mktemp("clips") / "thirty.wav"
+    sf.write(path, np.concatenate([a, b])[: 30 * sr], sr)
+    return path
+
+
+def joints_of(seq) -> np.ndarray:
+    with torch.no_grad():
+        return SkeletonBody()(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+
+
+def test_shipped_files_match_their_checksums_and_load():
+    names = verify_checksums(BUNDLED_MODEL)
+    for kind in KINDS:
+        assert f"{kind}.json" in names and f"{kind}.safetensors" in names
+        loaded = load_model(bundled_model_file(kind), kind)
+        assert not loaded.model.training
+    assert "MODEL_CARD.md" in names
+    total = sum((BUNDLED_MODEL / n).stat().st_size for n in names)
+    assert total <= 25 * 1024 * 1024
+    speech = load_model(bundled_model_file("speech"), "speech")
+    assert speech.extra["train_splits"] == ["train"]  # val stays unseen for the calibrations
+    assert speech.extra["emotion_perception"]["info"]["split"] == "val"
+
+
+def test_a_damaged_shipped_file_is_refused(tmp_path):
+    from emogesture.errors import InputFileError
+
+    copy = tmp_path / "model"
+    copy.mkdir()
+    for p in BUNDLED_MODEL.iterdir():
+        if p.is_file():
+            (copy / p.name).write_bytes(p.read_bytes())
+    data = bytearray((copy / "gesture.safetensors").read_bytes())
+    data[-10] ^= 0xFF
+    (copy / "gesture.safetensors").write_bytes(bytes(data))
+    with pytest.raises(InputFileError, match="checksum"):
+        verify_checksums(copy)
+    with pytest.raises(InputFileError, match="checksum"):
+        GesturePipeline.from_run(copy / "gesture.json")
+
+
+def test_thirty_seconds_give_900_frames_and_the_seed_decides(pipe, clip30):
+    wave = pipe.load_speech(clip30)
+    a = pipe.generate(wave, seed=5)[0]
+    assert a.num_frames == 900 and a.poses.shape == (900, 55, 3)
+    b = pipe.generate(wave, seed=5)[0]
+    assert np.array_equal(a.poses, b.poses)
+    c = pipe.generate(wave, seed=6)[0]
+    assert not np.allclose(a.poses, c.poses)
+
+
+def test_emotion_edits_by_label_read_as_that_label(pipe):
+    """Every window of the demo clip re-generated with each label, classified by the extractor."""
+    extractor = load_model(bundled_model_file("extractor"), "extractor")
+    mean = torch.tensor(extractor.extra["motion_mean"])
+    std = torch.tensor(extractor.extra["motion_std"])
+    wave = pipe.load_speech(DEMO_CLIPS / "talk.flac")
+    enc, starts = pipe.encode(wave)
+    per_label = {}
+    for label in EMOTIONS:
+        conds = pipe.conditions(enc, EditRequest(emotion_label=label))
+        seeds = [100 + i for i in range(len(starts))] * 4
+        motion = pipe.generate_windows([np.concatenate([c] * 4) for c in conds], seeds)
+        with torch.no_grad():
+            logits = extractor.model((torch.from_numpy(motion) - mean) / std)[1]
+        per_label[label] = float((logits.argmax(1).numpy() == EMOTIONS.index(label)).mean())
+    print("edit accuracy per label:", json.dumps(per_label))
+    assert sum(v > 0.5 for v in per_label.values()) >= 5, per_label  # most labels
+
+
+def test_silence_gives_a_calm_animation(pipe, tmp_path):
+    silent = tmp_path / "silence.wav"
+    sf.write(silent, np.zeros(60 * 16000, np.float32), 16000)
+    calm = pipe.generate(pipe.load_speech(silent), seed=0)[0]
+    assert calm.num_frames == 1800
+    speech = pipe.generate(pipe.load_speech(DEMO_CLIPS / "talk.flac"), seed=0)[0]
+    calm_speed, speech_speed = wrist_speed(joints_of(calm)), wrist_speed(joints_of(speech))
+    print(f"wrist speed: silence {calm_speed:.3f} m/s, speech {speech_speed:.3f} m/s")
+    assert calm_speed < 0.5 * speech_speed
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "emogesture.cli.main", *args], capture_output=True, text=True)
+
+
+@pytest.mark.slow
+def test_generate_writes_every_format_and_the_perception(tmp_path):
+    out = tmp_path / "out"
+    proc = run_cli("generate", str(DEMO_CLIPS / "angry.flac"), "-o", str(out), "--emotion", "sadness",
+                   "--format", "npz,bvh", "--samples", "2")
+    assert proc.returncode == 0, proc.stderr
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["angry_emotion-sadness_seed0_0.bvh", "angry_emotion-sadness_seed0_0.npz",
+                     "angry_emotion-sadness_seed0_1.bvh", "angry_emotion-sadness_seed0_1.npz",
+                     "angry_emotion-sadness_seed0_perception.json"]
+    for name in names:
+        assert str(out / name) in proc.stdout
+    assert "perceived emotion" in proc.stdout
+    perception = json.loads((out / "angry_emotion-sadness_seed0_perception.json").read_text())
+    assert perception[0]["windows"][0]["emotion"] in EMOTIONS and "trust" in perception[0]["windows"][0]
+    again = run_cli("generate", str(DEMO_CLIPS / "angry.flac"), "-o", str(out), "--emotion", "sadness",
+                    "--format", "npz,bvh", "--samples", "2")
+    assert again.returncode == 2 and "already exists" in again.stderr
+    assert sorted(p.name for p in out.iterdir()) == names
+
+
+def _bad_inputs(tmp_path: Path) -> list[tuple[list[str], str]]:
+    text = tmp_path / "notes.wav"
+    text.write_text("these are my meeting notes, not audio\n")
+    empty = tmp_path / "empty.wav"
+    empty.write_bytes(b"")
+    whole, sr = sf.read(DEMO_CLIPS / "angry.flac", dtype="float32")
+    full = tmp_path / "full.wav"
+    sf.write(full, whole, sr)
+    truncated = tmp_path / "truncated.wav"
+    truncated.write_bytes(full.read_bytes()[: full.stat().st_size // 2])
+    short = tmp_path / "short.wav"
+    sf.write(short, whole[: sr // 10], sr)
+    corrupt = tmp_path / "corrupt_model"
+    corrupt.mkdir()
+    (corrupt / "model.json").write_text("{ not json")
+    foreign = tmp_path / "foreign_model"
+    foreign.mkdir()
+    (foreign / "model.json").write_text(json.dumps({"name": "some other tool's model"}))
+    taken = tmp_path / "taken"
+    taken.mkdir()
+    (taken / "angry_seed0_0.npz").write_bytes(b"the user's file")
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    clip = str(DEMO_CLIPS / "angry.flac")
+    out = str(tmp_path / "o")
+    return [
+        (["generate", str(text), "-o", out], "notes.wav"),
+        (["generate", str(empty), "-o", out], "empty file"),
+        (["generate", str(truncated), "-o", out], "truncated"),
+        (["generate", str(short), "-o", out], "too short"),
+        (["generate", clip, "-o", out, "--emotion", "joy"], "unknown"),
+        (["generate", clip, "-o", out, "--model", str(corrupt)], "corrupt_model"),
+        (["generate", clip, "-o", out, "--model", str(foreign)], "not an emogesture model"),
+        (["generate", clip, "-o", str(taken), "--format", "npz"], "already exists"),
+        (["generate", clip, "-o", str(a_file)], "is a file"),
+        (["generate", clip, "-o", out, "--emotion-weight", "0.5"], "--emotion-weight"),
+    ]
+
+
+@pytest.mark.slow
+def test_bad_input_is_one_line_and_leaves_nothing(tmp_path):
+    for args, needle in _bad_inputs(tmp_path):
+        proc = run_cli(*args)
+        lines = proc.stderr.strip().splitlines()
+        assert proc.returncode != 0, args
+        assert len(lines) == 1 and needle in lines[0], (args, proc.stderr)
+        assert "Traceback" not in proc.stderr
+        assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir()), args
+    assert (tmp_path / "taken" / "angry_seed0_0.npz").read_bytes() == b"the user's file"
+    assert not list(tmp_path.glob("**/.*.tmp"))

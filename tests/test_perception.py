@@ -1,0 +1,71 @@
+"""Emotion perception: distances, trust, the auto blend, and what calibration refuses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from emogesture.data.beat import EMOTIONS
+from emogesture.errors import EmogestureError
+from emogesture.pipeline.perception import EmotionPerception, auto_emotion, fit_perception
+
+
+def clusters(n_per: int, seed: int, shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    centres = np.random.default_rng(99).normal(0, 3, (8, 16))
+    labels = np.repeat(np.arange(8), n_per)
+    return centres[labels] + rng.normal(0, 1, (len(labels), 16)) + shift, labels
+
+
+def test_in_distribution_is_trusted_and_far_away_is_not():
+    train, labels = clusters(60, 0)
+    held, _ = clusters(20, 1)
+    p = fit_perception(train, labels, held, quantile=0.99)
+    assert p.labels == list(EMOTIONS)
+    trust_held = p.trust(held)
+    assert (trust_held == 1.0).mean() >= 0.95  # about 1 % above the 0.99 quantile
+    far, _ = clusters(20, 2, shift=6.0)
+    assert (p.trust(far) < 1.0).mean() > 0.9
+    assert p.trust(far).mean() < 0.2
+    # distances grow with the shift
+    d = [np.median(p.distances(clusters(20, 3, s)[0]).min(1)) for s in (0.0, 1.0, 3.0)]
+    assert d[0] < d[1] < d[2]
+
+
+def test_auto_blends_untrusted_windows_toward_neutral_only():
+    train, labels = clusters(60, 0)
+    p = fit_perception(train, labels, clusters(20, 1)[0])
+    inside = train[:5]
+    outside = train[:5] + 50.0
+    assert np.allclose(auto_emotion(inside.astype(np.float32), p), inside, atol=1e-5)
+    blended = auto_emotion(outside.astype(np.float32), p)
+    assert np.allclose(blended, np.broadcast_to(p.neutral(), blended.shape), atol=1e-4)
+    assert auto_emotion(outside, None) is outside  # an uncalibrated model keeps its latents
+
+
+def test_round_trip_and_refusals():
+    train, labels = clusters(10, 0)
+    p = fit_perception(train, labels, clusters(5, 1)[0])
+    q = EmotionPerception.from_dict(p.to_dict())
+    assert np.allclose(q.means, p.means) and q.threshold == p.threshold
+    with pytest.raises(EmogestureError, match="neutral"):
+        fit_perception(train[labels > 0], labels[labels > 0], train)
+
+
+def test_calibration_refuses_a_split_the_model_trained_on(tmp_path):
+    from emogesture.checkpoints import save_model
+    from emogesture.config import to_dict
+    from emogesture.data.prepare import PrepareConfig
+    from emogesture.errors import InputFileError
+    from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+    from emogesture.pipeline.perception import calibrate_perception_run
+
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    save_model(tmp_path / "speech", "speech", SpeechDisentangler(cfg), cfg, {
+        "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
+        "prepare_config": to_dict(PrepareConfig()), "train_splits": ["train", "val"], "step": 0})
+    with pytest.raises(InputFileError, match="trained on the val split"):
+        calibrate_perception_run(tmp_path / "speech", tmp_path / "no_cache", tmp_path / "out")
+    with pytest.raises(EmogestureError, match="test split"):
+        calibrate_perception_run(tmp_path / "speech", tmp_path / "no_cache", tmp_path / "out", split="test")
+    assert not (tmp_path / "out").exists()
