@@ -44,9 +44,8 @@ def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterato
         raise EmogestureError(f"{path}: cannot create its folder ({err.strerror or err})") from None
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))  # its mode honours the umask
         yield tmp
-        if not tmp.is_file():
-            raise EmogestureError(f"{path}: nothing was written")
         fd = os.open(tmp, os.O_RDONLY)
         try:
             os.fsync(fd)
@@ -54,7 +53,6 @@ def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterato
             os.close(fd)
         if path.exists() and not overwrite:  # appeared while we were writing
             raise OutputExistsError(path)
-        os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     except OSError as err:
         if isinstance(err, OutputExistsError):

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import secrets
 import zipfile
 import zlib
 from os import PathLike
@@ -13,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
+from emogesture.fileio import atomic_output
 from emogesture.types import FPS, NUM_JOINTS, SMPLXSequence
 
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
@@ -32,35 +31,16 @@ def write_npz_atomic(
         OutputExistsError: ``path`` exists and ``overwrite`` is False.
         EmogestureError: the file cannot be written (one line, naming it).
     """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise OutputExistsError(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # mode honours the umask
-        with os.fdopen(fd, "wb") as handle:
-            with zipfile.ZipFile(handle, "w", compression=method) as archive:
-                for name, value in arrays.items():
-                    info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_DATE)
-                    info.compress_type = method
-                    info.external_attr = 0o644 << 16
-                    with archive.open(info, "w", force_zip64=True) as entry:
-                        np.lib.format.write_array(entry, np.asanyarray(value), allow_pickle=False)
-            handle.flush()
-            os.fsync(handle.fileno())
-        if path.exists() and not overwrite:  # appeared while we were writing
-            raise OutputExistsError(path)
-        os.replace(tmp, path)
-    except OSError as err:
-        if isinstance(err, OutputExistsError):
-            raise
-        raise EmogestureError(f"{path}: cannot write ({err.strerror or err})") from err
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+    with atomic_output(path, overwrite) as tmp, tmp.open("wb") as handle:
+        with zipfile.ZipFile(handle, "w", compression=method) as archive:
+            for name, value in arrays.items():
+                info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_DATE)
+                info.compress_type = method
+                info.external_attr = 0o644 << 16
+                with archive.open(info, "w", force_zip64=True) as entry:
+                    np.lib.format.write_array(entry, np.asanyarray(value), allow_pickle=False)
+    return Path(path)
 
 
 def save_smplx_npz(seq: SMPLXSequence, path: str | PathLike[str], overwrite: bool = False) -> Path:
