@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from os import PathLike
@@ -102,18 +103,29 @@ class SpeechLatentEncoder:
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
         """Latents of every window of a prepared split, cached next to the model file.
 
-        The cache file is keyed by the model's weights checksum and the cache's digest, so a changed
-        model or cache is never served stale latents.
+        The cache file is keyed by what the latents depend on: the model's weights checksum, the cache's
+        statistics digest and a digest of the split's filterbank windows themselves, so a changed model
+        or re-prepared windows (a rebuilt corpus, one changed take) are never served stale latents.
         """
-        key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}"
+        windows = cache.split(split)
+        key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}_{array_digest(windows.fbank)}"
         path = Path(self.loaded.path).parent / "latents" / f"{key}.npz"
         if path.is_file():
             with np.load(path) as z:
                 return EncodedWindows(*(z[k] for k in EncodedWindows.__dataclass_fields__))
-        windows = cache.split(split)
         enc = self.encode_windows(windows.fbank, batch_size,
                                   renormalise=(cache.stats["fbank_mean"], cache.stats["fbank_std"]))
         from emogesture.motion import write_npz_atomic
 
         write_npz_atomic(path, {k: getattr(enc, k) for k in EncodedWindows.__dataclass_fields__}, overwrite=True)
         return enc
+
+
+def array_digest(array: np.ndarray, rows: int = 64) -> str:
+    """A short content digest (BLAKE2b, 16 hex digits) of an array, its shape and dtype included, read
+    ``rows`` leading-axis rows at a time (memory-mapped arrays are not loaded whole)."""
+    h = hashlib.blake2b(digest_size=8)
+    h.update(f"{array.shape}{array.dtype}".encode())
+    for i in range(0, len(array), rows):
+        h.update(np.ascontiguousarray(array[i : i + rows]).tobytes())
+    return h.hexdigest()
