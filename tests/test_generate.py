@@ -146,3 +146,13 @@ def test_cli_errors_are_one_line(runs, tmp_path):
     out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(runs / "other.wav"), "--model",
                           str(runs / "speech"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
     assert out.returncode == 2 and "'speech' model, but a 'gesture' model is needed" in out.stderr
+
+
+def test_flags_that_would_be_ignored_are_errors(tmp_path, capsys):
+    from emogesture.cli.main import main
+
+    for extra in (["--long-audio", "30"], ["--edit-model", "ours"]):
+        code = main(["evaluate", "gesture", "--data", str(tmp_path / "c"), "--extractor", str(tmp_path / "x"),
+                     "--out", str(tmp_path / "r"), *extra])
+        assert code == 2 and "need --model" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()

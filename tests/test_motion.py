@@ -321,3 +321,13 @@ def test_features_to_matrices_gives_the_same_joints_as_poses():
         rotations, trans2 = features_to_matrices(x, spec)
         assert rotations.shape == (2, 5, 55, 3, 3)
         assert torch.allclose(body(poses, trans), body.forward_matrices(rotations, trans2), atol=1e-5)
+
+
+def test_frame_rate_must_be_one_number(tmp_path):
+    from emogesture.motion import load_smplx_npz
+
+    path = tmp_path / "rates.npz"
+    np.savez(path, poses=np.zeros((4, 165), np.float32), trans=np.zeros((4, 3), np.float32),
+             mocap_frame_rate=np.array([30.0, 60.0]))
+    with pytest.raises(InputFileError, match="mocap_frame_rate.*one number"):
+        load_smplx_npz(path)

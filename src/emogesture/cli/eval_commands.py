@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a trained gesture model (run folder) to generate and score; repeatable, the first is "
                    "'ours' and the others its ablations")
     p.add_argument("--edit-model", metavar="NAME", help="model scored on emotion edits (default: the first)")
-    p.add_argument("--long-audio", type=float, default=65.0, metavar="SECONDS",
+    p.add_argument("--long-audio", type=float, default=None, metavar="SECONDS",
                    help="with --model: length of the long-audio seam check (default 65; 0 skips it)")
     p.add_argument("--split", default="test", help="split to evaluate (default test)")
     p.add_argument("--out", required=True, type=Path, help="output folder for JSON, markdown and PNGs")
@@ -66,6 +66,8 @@ def run_evaluate_gesture(args: argparse.Namespace) -> int:
     from emogesture.eval.gesture import evaluate_gesture, gesture_markdown
 
     sources = _named_paths(args.source, "--source", "NAME=FOLDER")
+    if not args.model and (args.long_audio is not None or args.edit_model is not None):
+        raise EmogestureError("--long-audio and --edit-model need --model (they generate with a trained model)")
     if args.model:
         from emogesture.eval.gesture_models import evaluate_gesture_models, gesture_models_markdown
 
@@ -75,7 +77,8 @@ def run_evaluate_gesture(args: argparse.Namespace) -> int:
         if args.edit_model is not None and args.edit_model not in models:
             raise EmogestureError(f"--edit-model {args.edit_model!r} is not one of the --model names")
         result = evaluate_gesture_models(args.data, args.extractor, models, args.out, args.split, args.edit_model,
-                                         args.seed, args.long_audio, overwrite=args.overwrite)
+                                         args.seed, 65.0 if args.long_audio is None else args.long_audio,
+                                         overwrite=args.overwrite)
         print(gesture_models_markdown(result))
         return 0
     result = evaluate_gesture(args.data, args.extractor, sources, args.out, args.split,

@@ -171,7 +171,7 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         "rows": rows, "gt_split_half_fgd": ev.split_half_fgd(seed),
         "audio_onsets": ev.onsets is not None,
         "constants": {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in METRIC_CONSTANTS.items()},
-                      "seed": seed, "body": "licence-free mannequin-x skeleton"},
+                      "div_seed": seed, "seed": seed, "body": "licence-free mannequin-x skeleton"},
         "seconds": round(time.monotonic() - t0, 1),
     }
     for path, text in ((json_path, json.dumps(result, indent=1)), (md_path, gesture_markdown(result))):

@@ -147,7 +147,9 @@ def load_smplx_npz(path: str | PathLike[str]) -> SMPLXSequence:
 
         rate = _read(data, "mocap_frame_rate", path)
         fps = float(FPS)
-        if rate is not None and rate.size == 1:
+        if rate is not None and rate.size != 1:
+            raise InputFileError(path, f"'mocap_frame_rate' must be one number, got an array of shape {rate.shape}")
+        if rate is not None:
             fps = float(_numeric(rate, "mocap_frame_rate", path, np.float64).item())
         if fps <= 0:
             raise InputFileError(path, f"'mocap_frame_rate' must be positive, got {fps}")
