@@ -5,7 +5,8 @@ through changes that move a voice away from the training voices: a pitch and tem
 -4 semitones, by resampling), babble-free white noise at 10 dB SNR, a telephone band (300-3400 Hz),
 and pink noise alone (no speech at all). For each, over every 10-s window: how often the perceived
 emotion is the take's emotion, the median distance to the nearest emotion mean (in units of the
-trust threshold), and the share of windows that `generate --emotion auto` blends toward neutral.
+trust threshold), the same for the voice (style latent to the nearest training speaker), and the
+share of windows that `generate --emotion auto` blends toward neutral.
 
 Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR
 """
@@ -68,36 +69,41 @@ def main(speech_model: str, cache_dir: str, out_dir: str) -> None:
     }
     rows = {}
     for name, change in variants.items():
-        hits, dist, low, trust, labels = [], [], [], [], []
+        hits, dist, voice, low, trust, labels = [], [], [], [], [], []
         for take in takes:
             wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
             enc, starts = encoder.encode(change(wave), 16000, 8.0)
             p = perceive(enc, starts, perception, take)
             hits += [lab == EMOTIONS[emotion_of[take]] for lab in p.labels]
             labels += p.labels
-            dist += list(p.distance / perception.threshold)
+            dist += list(p.distance[:, 0])
+            voice += list(p.distance[:, 1])
             low += list(p.trust < 1.0)
             trust += list(p.trust)
         counts = {k: labels.count(k) / len(labels) for k in EMOTIONS if labels.count(k)}
         rows[name] = {"windows": len(hits), "perceived_correctly": float(np.mean(hits)),
                       "median_distance_over_threshold": float(np.median(dist)),
+                      "median_voice_distance_over_threshold": float(np.median(voice)),
                       "share_blended_toward_neutral": float(np.mean(low)), "mean_trust": float(np.mean(trust)),
                       "perceived_emotions": counts}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    result = {"split": "test", "takes": len(takes), "threshold": perception.threshold,
-              "threshold_info": perception.info, "rows": rows}
+    result = {"split": "test", "takes": len(takes), "thresholds": {"emotion": perception.emotion.threshold,
+              "voice": perception.voice.threshold}, "threshold_info": perception.info, "rows": rows}
     (out / "perception_shift.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = ["# Emotion perception on voices unlike the training voices", "",
-             f"{len(takes)} held-out takes (test texts) of the default corpus, every 10-s window; distance = "
-             f"standardised distance to the nearest emotion mean over the trust threshold ({perception.threshold:.3f}, "
-             f"the {perception.info['quantile']:g} quantile on the {perception.info['split']} windows).", "",
-             "| audio | windows | perceived emotion correct | median distance / threshold | blended toward neutral "
-             "(`--emotion auto`) | mean trust | most perceived |", "|---|---|---|---|---|---|---|"]
+             f"{len(takes)} held-out takes (test texts) of the default corpus, every 10-s window. Emotion distance: "
+             "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
+             "latent's to the nearest training speaker; each over its trust threshold (the "
+             f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows).", "",
+             "| audio | windows | perceived emotion correct | median emotion distance / threshold | median voice "
+             "distance / threshold | blended toward neutral (`--emotion auto`) | mean trust | most perceived |",
+             "|---|---|---|---|---|---|---|---|"]
     for name, r in rows.items():
         top = ", ".join(f"{k} {v:.2f}" for k, v in sorted(r["perceived_emotions"].items(), key=lambda kv: -kv[1])[:3])
         lines.append(f"| {name} | {r['windows']} | {r['perceived_correctly']:.3f} | "
-                     f"{r['median_distance_over_threshold']:.2f} | {r['share_blended_toward_neutral']:.3f} | "
+                     f"{r['median_distance_over_threshold']:.2f} | {r['median_voice_distance_over_threshold']:.2f} | "
+                     f"{r['share_blended_toward_neutral']:.3f} | "
                      f"{r['mean_trust']:.3f} | {top} |")
     (out / "perception_shift.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -518,3 +518,16 @@ def test_scramble_segments_permutes_whole_segments() -> None:
     assert torch.equal(scramble_segments(x, torch.Generator(), 22), x)  # one segment: nothing to move
     with pytest.raises(ValueError, match="segment"):
         scramble_segments(x, torch.Generator(), 0)
+
+
+def test_window_activity_counts_frames_with_sound():
+    from emogesture.audio import window_activity
+
+    sr = 16000
+    t = np.arange(20 * sr) / sr
+    wave = 0.3 * np.sin(2 * np.pi * 200 * t)
+    wave[10 * sr:] = 0.0  # sound for 10 s, then digital silence
+    act = window_activity(wave.astype(np.float32), sr, [0.0, 5.0, 10.0])
+    assert act == pytest.approx([1.0, 0.5, 0.0], abs=0.01)
+    quiet = wave * 1e-4  # -90 dBFS: below the absolute floor
+    assert window_activity(quiet.astype(np.float32), sr, [0.0]).item() == 0.0

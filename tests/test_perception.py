@@ -8,48 +8,62 @@ import pytest
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.perception import EmotionPerception, auto_emotion, fit_perception
+from emogesture.pipeline.speech import EncodedWindows
 
 
 def clusters(n_per: int, seed: int, shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
-    centres = np.random.default_rng(99).normal(0, 3, (8, 16))
+    centres = np.random.default_rng(99).normal(0, 3, (8, 48))
     labels = np.repeat(np.arange(8), n_per)
-    return centres[labels] + rng.normal(0, 1, (len(labels), 16)) + shift, labels
+    return centres[labels] + rng.normal(0, 1, (len(labels), 48)) + shift, labels
+
+
+def windows(emotion: np.ndarray, style: np.ndarray | None = None) -> EncodedWindows:
+    """Encoded windows with these emotion (and style) latents; the style defaults to a copy."""
+    n = len(emotion)
+    style = emotion.copy() if style is None else style
+    return EncodedWindows(np.zeros((n, 4)), emotion, style, np.zeros((n, 8)), np.zeros((n, 2)))
+
+
+def fitted(n_per: int = 60):
+    train, labels = clusters(n_per, 0)
+    held, _ = clusters(20, 1)
+    return fit_perception(windows(train), labels, labels % 2, windows(held), quantile=0.99), train, held
 
 
 def test_in_distribution_is_trusted_and_far_away_is_not():
-    train, labels = clusters(60, 0)
-    held, _ = clusters(20, 1)
-    p = fit_perception(train, labels, held, quantile=0.99)
+    p, train, held = fitted()
     assert p.labels == list(EMOTIONS)
-    trust_held = p.trust(held)
-    assert (trust_held == 1.0).mean() >= 0.95  # about 1 % above the 0.99 quantile
+    assert (p.trust(held, held) == 1.0).mean() >= 0.95  # about 1 % above each 0.99 quantile
     far, _ = clusters(20, 2, shift=6.0)
-    assert (p.trust(far) < 1.0).mean() > 0.9
-    assert p.trust(far).mean() < 0.2
+    assert (p.trust(far, far) < 1.0).mean() > 0.9
+    assert p.trust(far, far).mean() < 0.2
+    # an unfamiliar voice alone (style far, emotion familiar) is enough to distrust the window
+    assert p.trust(held, far).mean() < 0.2 and p.trust(held, held).mean() > 0.95
     # distances grow with the shift
-    d = [np.median(p.distances(clusters(20, 3, s)[0]).min(1)) for s in (0.0, 1.0, 3.0)]
+    d = [np.median(p.emotion.nearest(clusters(20, 3, s)[0])) for s in (0.0, 1.0, 3.0)]
     assert d[0] < d[1] < d[2]
+    assert 0.5 < np.median(p.emotion.nearest(held)) < 2.0  # about 1 for typical windows
 
 
 def test_auto_blends_untrusted_windows_toward_neutral_only():
-    train, labels = clusters(60, 0)
-    p = fit_perception(train, labels, clusters(20, 1)[0])
+    p, train, _ = fitted()
     inside = train[:5]
     outside = train[:5] + 50.0
-    assert np.allclose(auto_emotion(inside.astype(np.float32), p), inside, atol=1e-5)
-    blended = auto_emotion(outside.astype(np.float32), p)
+    assert np.allclose(auto_emotion(inside.astype(np.float32), inside, p), inside, atol=1e-5)
+    blended = auto_emotion(outside.astype(np.float32), outside, p)
     assert np.allclose(blended, np.broadcast_to(p.neutral(), blended.shape), atol=1e-4)
-    assert auto_emotion(outside, None) is outside  # an uncalibrated model keeps its latents
+    assert auto_emotion(outside, outside, None) is outside  # an uncalibrated model keeps its latents
 
 
 def test_round_trip_and_refusals():
-    train, labels = clusters(10, 0)
-    p = fit_perception(train, labels, clusters(5, 1)[0])
+    p, train, held = fitted(10)
     q = EmotionPerception.from_dict(p.to_dict())
-    assert np.allclose(q.means, p.means) and q.threshold == p.threshold
+    assert np.allclose(q.trust(held, held + 1.0), p.trust(held, held + 1.0))
+    assert q.voice.threshold == p.voice.threshold
+    labels = np.repeat(np.arange(8), 10)
     with pytest.raises(EmogestureError, match="neutral"):
-        fit_perception(train[labels > 0], labels[labels > 0], train)
+        fit_perception(windows(train[labels > 0]), labels[labels > 0], labels[labels > 0] % 2, windows(train))
 
 
 def test_calibration_refuses_a_split_the_model_trained_on(tmp_path):

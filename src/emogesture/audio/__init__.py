@@ -25,7 +25,7 @@ from emogesture.audio.mel import (
     mel_to_hz_htk,
     mel_to_hz_slaney,
 )
-from emogesture.audio.onsets import detect_onsets, frame_energy, onset_strength, peak_pick
+from emogesture.audio.onsets import detect_onsets, frame_energy, onset_strength, peak_pick, window_activity
 from emogesture.audio.stft import power_spectrum, stft_power
 from emogesture.audio.windows import (
     FBANK_FRAMES_PER_SECOND,
@@ -59,6 +59,7 @@ __all__ = [
     "check_speech",
     "denormalise_fbank",
     "detect_onsets",
+    "window_activity",
     "fbank_window",
     "fbank_windows",
     "frame_energy",

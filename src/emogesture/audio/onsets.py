@@ -19,7 +19,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from emogesture.audio.mel import librosa_mel_banks
 from emogesture.audio.stft import as_float_tensor, stft_power
 
-__all__ = ["onset_strength", "detect_onsets", "peak_pick", "frame_energy"]
+__all__ = ["onset_strength", "detect_onsets", "peak_pick", "frame_energy", "window_activity"]
 
 
 def _mono(waveform: np.ndarray | torch.Tensor) -> torch.Tensor:
@@ -152,3 +152,21 @@ def frame_energy(waveform: np.ndarray | torch.Tensor, sample_rate: int, fps: flo
     sums = csum[edges[1:]] - csum[edges[:-1]]
     rms = np.sqrt(np.maximum(sums, 0.0) / np.maximum(counts, 1))
     return rms.astype(np.float32)
+
+
+def window_activity(waveform: np.ndarray | torch.Tensor, sample_rate: int, starts_s: list[float],
+                    window_seconds: float = 10.0, floor_db: float = -50.0, range_db: float = 40.0) -> np.ndarray:
+    """Share of each window's 1/30-s frames that hold sound: ``[W]`` in [0, 1] for windows starting at
+    ``starts_s``. A frame counts when its RMS (:func:`frame_energy`) is above ``floor_db`` dBFS and
+    within ``range_db`` of the loudest frame of the whole waveform; digital silence scores 0.
+    Frames past the end of the waveform count as silent."""
+    rms = frame_energy(waveform, sample_rate, fps=30)
+    level = 20 * np.log10(np.maximum(rms, 1e-12))
+    loudest = float(level.max()) if level.size else floor_db
+    active = level > max(floor_db, loudest - range_db)
+    frames = int(round(window_seconds * 30))
+    out = np.zeros(len(starts_s), np.float64)
+    for i, start in enumerate(starts_s):
+        first = int(round(start * 30))
+        out[i] = active[first:first + frames].sum() / frames
+    return out

@@ -119,7 +119,7 @@ def run_generate(args: argparse.Namespace) -> int:
     if edit is not None and "emotion" in edit_audio:
         enc, starts = pipe.encode(edit_audio["emotion"])
         perceived.append(pipe.perceive(enc, starts, source=str(args.emotion_from)))
-        edit.emotion_from = auto_emotion(enc.emotion, perception_of(pipe.speech)) if mode == "auto" else enc.emotion
+        edit.emotion_from = auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech)) if mode == "auto" else enc.emotion
     if edit is not None and "style" in edit_audio:
         edit.style_from = pipe.encode(edit_audio["style"])[0].style
     for p in perceived:

@@ -120,9 +120,9 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     from emogesture.pipeline.perception import calibrate_perception_run
 
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite)
-    print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows, threshold "
-          f"{p.threshold:.3f} (quantile {p.info['quantile']:g} of {p.info['held_out_windows']} {args.split} windows; "
-          f"median {p.info['held_out_distance_median']:.3f}): {args.out / 'model.json'}")
+    print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
+          f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
+          f"{p.info['held_out_windows']} {args.split} windows): {args.out / 'model.json'}")
     return 0
 
 

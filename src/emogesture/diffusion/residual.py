@@ -46,12 +46,15 @@ def residual_factor(residuals: np.ndarray) -> tuple[np.ndarray, float]:
     return np.linalg.cholesky(cov).astype(np.float32), shrinkage
 
 
-def add_residual_noise(z: torch.Tensor, factor: torch.Tensor, generator: Generators, scale: float = 1.0) -> torch.Tensor:
+def add_residual_noise(z: torch.Tensor, factor: torch.Tensor, generator: Generators,
+                       scale: float | torch.Tensor = 1.0) -> torch.Tensor:
     """``z [B, D] + scale · ε Lᵀ`` with ``ε`` standard normal from ``generator`` (one per sample keeps
-    samples batch-independent, see :mod:`emogesture.diffusion.sampling`). ``scale = 0`` returns ``z``
-    unchanged and draws nothing."""
-    if scale == 0:
+    samples batch-independent, see :mod:`emogesture.diffusion.sampling`); ``scale`` is a number or one
+    per sample ``[B]``. A scale of 0 (a number) returns ``z`` unchanged and draws nothing."""
+    if not torch.is_tensor(scale) and scale == 0:
         return z
+    if torch.is_tensor(scale):
+        scale = scale.to(z).reshape(-1, 1)
     if factor.shape != (z.shape[1], z.shape[1]):
         raise ValueError(f"residual factor must be [{z.shape[1]}, {z.shape[1]}], got {tuple(factor.shape)}")
     eps = draw_noise(generator, z.shape[0], z.shape[1], z.device, z.dtype)

@@ -252,11 +252,11 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         sources[name] = generate_from_conditions(gesture, conds, seeds)
         perception = perception_of(speech) if name == main and speech is not None else None
         if perception is not None:  # `generate --emotion auto`: untrusted emotion latents blended toward neutral
-            trust = perception.trust(conds[1])
+            trust = perception.trust(conds[1], conds[2])
             auto_trust[f"{name}, emotion auto"] = {"windows": int(len(trust)), "trusted": int((trust >= 1).sum()),
                                                    "mean_trust": float(trust.mean())}
             sources[f"{name}, emotion auto"] = generate_from_conditions(
-                gesture, [conds[0], auto_emotion(conds[1], perception), conds[2]], seeds)
+                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), conds[2]], seeds)
         if name == edit_model:
             known = [EMOTIONS.index(k) for k in gesture.extra.get("emotion_latent_means", {})]
             targets = edit_targets(windows.emotion, seed, known)

@@ -73,7 +73,8 @@ def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
 @torch.no_grad()
 def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int], batch_size: int = 64,
                    num_inference_steps: int | None = None, residual: bool = True,
-                   progress: Callable[[int], None] | None = None) -> torch.Tensor:
+                   progress: Callable[[int], None] | None = None,
+                   residual_weights: np.ndarray | None = None) -> torch.Tensor:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> sampled motion latents ``[W, 256]``
     (on the model's device); see :func:`generate_from_conditions`."""
     model = gesture.model.eval()
@@ -92,7 +93,10 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         generators = make_generators(seeds[i : i + batch_size])
         z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps, eta=cfg.diffusion.eta)
         if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
-            z = add_residual_noise(z, model.latent_residual_tril, generators, cfg.diffusion.residual_scale)
+            scale = cfg.diffusion.residual_scale
+            if residual_weights is not None:
+                scale = scale * torch.as_tensor(np.asarray(residual_weights[i : i + batch_size], np.float32))
+            z = add_residual_noise(z, model.latent_residual_tril, generators, scale)
         out.append(z)
         if progress is not None:
             progress(len(z))
@@ -123,15 +127,17 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
 
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
                              batch_size: int = 64, num_inference_steps: int | None = None,
-                             residual: bool = True, progress: Callable[[int], None] | None = None) -> np.ndarray:
+                             residual: bool = True, progress: Callable[[int], None] | None = None,
+                             residual_weights: np.ndarray | None = None) -> np.ndarray:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
     (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
     the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
-    noise (``diffusion.residual_scale``) unless ``residual=False``.
+    noise (``diffusion.residual_scale``, times ``residual_weights [W]`` when given) unless ``residual=False``.
     """
-    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress)
+    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress,
+                       residual_weights)
     return decode_latents(gesture, z, gesture.config.vae.frames, batch_size)
 
 

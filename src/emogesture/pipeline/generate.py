@@ -10,6 +10,10 @@ moves least, a seam's cost being the largest frame-to-frame joint displacement (
 of its cross-fade, over the overlap and the frames on either side. Output length is
 ``round(duration * 30)`` frames.
 
+A calibrated model's residual noise (the strokes the per-window audio latents leave open, see
+:mod:`emogesture.diffusion.residual`) is weighted per window by how much of it holds sound
+(:data:`FULL_RESIDUAL_ACTIVITY`): silence gets none, so a silent stretch gives a calm animation.
+
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
 (the per-class mean emotion latent stored with the model), blended with a weight.
@@ -27,7 +31,7 @@ import numpy as np
 import torch
 
 from emogesture.assets import bundled_model_file
-from emogesture.audio import check_speech, load_audio
+from emogesture.audio import check_speech, load_audio, window_activity
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
@@ -38,6 +42,9 @@ from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
 
 WINDOW_SECONDS = 10.0
+#: Share of a window's frames with sound (:func:`emogesture.audio.window_activity`) from which its
+#: residual noise is added in full; below it the noise shrinks linearly to none for silence.
+FULL_RESIDUAL_ACTIVITY = 0.5
 
 
 @dataclass
@@ -212,7 +219,7 @@ class GesturePipeline:
             raise EmogestureError(f"emotion mode {emotion_mode!r}: choose one of {', '.join(EMOTION_MODES)}")
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
         if emotion_mode == "auto":
-            e = auto_emotion(e, perception_of(self.speech))
+            e = auto_emotion(e, s, perception_of(self.speech))
         if edit is not None:
             n = len(c)
             target = None
@@ -230,9 +237,12 @@ class GesturePipeline:
         return [c, e, s]
 
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],
-                         progress: Callable[[int], None] | None = None) -> np.ndarray:
-        """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``."""
-        return generate_from_conditions(self.loaded, conditions, seeds, progress=progress)
+                         progress: Callable[[int], None] | None = None,
+                         residual_weights: np.ndarray | None = None) -> np.ndarray:
+        """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``
+        (``residual_weights [W]`` scale each window's residual noise)."""
+        return generate_from_conditions(self.loaded, conditions, seeds, progress=progress,
+                                        residual_weights=residual_weights)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
                  hop_seconds: float = 8.0, seam_candidates: int = 4, emotion_mode: str = "auto",
@@ -255,12 +265,15 @@ class GesturePipeline:
         pairs = [(i, c) for i in range(n) for c in range(k_cand)]  # (window, candidate) draws
         rows = np.array([i for i, _ in pairs])
         picked = [c[rows] for c in conds]
+        # residual noise stands for strokes the audio leaves open: none without sound, in full from half
+        # a window of it (every window of the corpus's speech has at least 0.6)
+        weights = np.clip(window_activity(waveform, 16000, starts_s) / FULL_RESIDUAL_ACTIVITY, 0.0, 1.0)[rows]
         out = []
         for k in range(samples):
             # candidate 0 of window i keeps the seed it has with one candidate
             seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                      for i, c in pairs]
-            drawn = self.generate_windows(picked, seeds, progress)
+            drawn = self.generate_windows(picked, seeds, progress, weights)
             candidates = drawn.reshape(n, k_cand, *drawn.shape[1:])
             feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
             poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)

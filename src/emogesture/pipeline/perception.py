@@ -2,20 +2,25 @@
 latent can be trusted there.
 
 The speech model learns emotion from the training voices only. On a voice unlike them (a real
-recording, another synthesiser) its emotion latent can land far from every emotion it knows, and the
-gesture model would then animate an emotion nobody spoke. So a speech model carries, in its
-``extra["emotion_perception"]``, a description of where its emotion latents lie on training speech:
+recording, another synthesiser, a telephone line, noise) its emotion latent can say an emotion nobody
+spoke, and the gesture model would animate it. So a speech model carries, in its
+``extra["emotion_perception"]``, where its latents lie on training speech, for two latents:
 
-- the mean latent of each emotion on the training windows, and the pooled within-emotion standard
-  deviation of each latent dimension;
-- a window's *distance* is the root mean square of its standardised difference to the nearest
-  emotion mean, ``min_k sqrt(mean(((e − μ_k) / σ)²))`` (a diagonal Mahalanobis distance per dimension);
-- the *threshold* is a high quantile (default 0.99) of that distance over held-out windows (texts the
+- the **emotion** latent around the mean latent of each emotion, and the **style** latent (the voice)
+  around the mean latent of each training speaker;
+- a window's distance is a Mahalanobis distance to the nearest mean, with the pooled within-class
+  covariance (Ledoit–Wolf shrunk, kept as 32 principal axes plus one variance for the rest,
+  :class:`LatentRange`), about 1 for typical training windows;
+- each *threshold* is a high quantile (default 0.99) of that distance over held-out windows (texts the
   speech model never trained on), so about 1 % of in-distribution windows exceed it.
 
-With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is 1 up to the
-threshold and falls linearly to 0 at twice the threshold; its emotion latent is blended toward the
-neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
+The voice is what tells unfamiliar speech apart: measured on held-out takes played through changes, the
+style distance flags most windows of a voice 4 semitones lower, of a telephone band, of speech in
+white noise and of noise alone, where the emotion distance flags few (`experiments/reports/bundled_model/`).
+
+With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
+the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
+emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
 """
 
 from __future__ import annotations
@@ -31,63 +36,109 @@ import numpy as np
 from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
+from emogesture.diffusion.residual import shrunk_covariance
 from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
 TRUST_QUANTILE = 0.99
+COMPONENTS = 32
+
+
+@dataclass
+class LatentRange:
+    """Where one latent lies on training speech: class means and a Mahalanobis distance to the nearest.
+
+    The within-class covariance (Ledoit–Wolf shrunk) is kept as its ``k`` leading principal axes
+    ``axes [k, D]`` with their variances, and one variance ``rest`` for the other ``D − k`` directions
+    (a probabilistic-PCA approximation, small enough to store as JSON). The distance of ``z`` to a class
+    mean ``μ`` is ``sqrt((Σᵢ (aᵢ·(z−μ))² / λᵢ + |residual|² / rest) / D)``: about 1 for typical
+    training windows, whatever the latent's scale.
+    """
+
+    means: np.ndarray  # [K, D]
+    axes: np.ndarray  # [k, D]
+    variances: np.ndarray  # [k]
+    rest: float
+    threshold: float = 1.0  # distance above which trust starts to fall
+
+    @classmethod
+    def fit(cls, latents: np.ndarray, labels: np.ndarray, components: int = COMPONENTS) -> "LatentRange":
+        x = np.asarray(latents, np.float64)
+        classes = sorted(set(np.asarray(labels).tolist()))
+        means = np.stack([x[labels == k].mean(0) for k in classes])
+        cov, _ = shrunk_covariance(x - means[np.searchsorted(classes, labels)])
+        values, vectors = np.linalg.eigh(cov)
+        values, vectors = values[::-1], vectors[:, ::-1]
+        k = min(components, x.shape[1] - 1)
+        return cls(means, vectors[:, :k].T.copy(), values[:k].copy(), float(values[k:].mean()))
+
+    def distances(self, latents: np.ndarray) -> np.ndarray:
+        """Latents ``[W, D]`` -> distance to each class mean ``[W, K]``."""
+        d = np.asarray(latents, np.float64)[:, None, :] - self.means[None]
+        along = d @ self.axes.T
+        residual = (d * d).sum(-1) - (along * along).sum(-1)
+        return np.sqrt(((along * along / self.variances).sum(-1) + residual.clip(0) / self.rest) / d.shape[-1])
+
+    def nearest(self, latents: np.ndarray) -> np.ndarray:
+        return self.distances(latents).min(1)
+
+    def trust(self, latents: np.ndarray) -> np.ndarray:
+        """``[W]`` in [0, 1]: 1 up to the threshold, falling linearly to 0 at twice the threshold."""
+        return np.clip(2.0 - self.nearest(latents) / self.threshold, 0.0, 1.0)
+
+    def to_dict(self) -> dict:
+        return {"means": self.means.tolist(), "axes": self.axes.tolist(), "variances": self.variances.tolist(),
+                "rest": self.rest, "threshold": self.threshold}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LatentRange":
+        return cls(*(np.asarray(d[k], np.float64) for k in ("means", "axes", "variances")), float(d["rest"]),
+                   float(d["threshold"]))
 
 
 @dataclass
 class EmotionPerception:
-    """Where a speech model's emotion latents lie on its training speech (see the module docstring)."""
+    """Where a speech model's emotion and style latents lie on its training speech (module docstring)."""
 
-    labels: list[str]
-    means: np.ndarray  # [K, D] per-emotion mean latent (training windows)
-    scale: np.ndarray  # [D] pooled within-emotion standard deviation
-    threshold: float  # distance above which trust starts to fall
+    labels: list[str]  # the emotions of ``emotion.means``
+    emotion: LatentRange  # emotion latent around the emotion means
+    voice: LatentRange  # style latent around the training speakers' means
     info: dict  # how it was measured (splits, windows, quantile)
 
-    def distances(self, emotion: np.ndarray) -> np.ndarray:
-        """Emotion latents ``[W, D]`` -> standardised RMS distance to each emotion mean ``[W, K]``."""
-        diff = (np.asarray(emotion, np.float64)[:, None, :] - self.means[None]) / self.scale
-        return np.sqrt((diff * diff).mean(-1))
-
-    def trust(self, emotion: np.ndarray) -> np.ndarray:
-        """Per-window trust ``[W]`` in [0, 1]: 1 up to the threshold, 0 from twice the threshold."""
-        d = self.distances(emotion).min(1)
-        return np.clip(2.0 - d / self.threshold, 0.0, 1.0)
+    def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
+        """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
+        return np.minimum(self.emotion.trust(emotion), self.voice.trust(style))
 
     def neutral(self) -> np.ndarray:
-        return self.means[self.labels.index("neutral")]
+        return self.emotion.means[self.labels.index("neutral")]
 
     def to_dict(self) -> dict:
-        return {"labels": list(self.labels), "means": self.means.tolist(), "scale": self.scale.tolist(),
-                "threshold": float(self.threshold), "info": self.info}
+        return {"labels": list(self.labels), "emotion": self.emotion.to_dict(), "voice": self.voice.to_dict(),
+                "info": self.info}
 
     @classmethod
     def from_dict(cls, d: dict) -> "EmotionPerception":
-        return cls(list(d["labels"]), np.asarray(d["means"], np.float64), np.asarray(d["scale"], np.float64),
-                   float(d["threshold"]), dict(d.get("info", {})))
+        return cls(list(d["labels"]), LatentRange.from_dict(d["emotion"]), LatentRange.from_dict(d["voice"]),
+                   dict(d.get("info", {})))
 
 
-def fit_perception(train_emotion: np.ndarray, train_labels: np.ndarray, held_out_emotion: np.ndarray,
+def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
                    quantile: float = TRUST_QUANTILE) -> EmotionPerception:
-    """Class means and pooled spread from training latents ``[N, D]`` with labels ``[N]`` (indices into
-    ``EMOTIONS``), and the trust threshold as the ``quantile`` of held-out windows' distances."""
-    e = np.asarray(train_emotion, np.float64)
-    y = np.asarray(train_labels)
-    present = sorted(set(y.tolist()))
+    """Emotion means (by ``emotions`` ``[N]``, indices into ``EMOTIONS``) and speaker means (by
+    ``speakers`` ``[N]``) with their within-class spread from training windows; each threshold is the
+    ``quantile`` of the held-out windows' distances."""
+    emotions, speakers = np.asarray(emotions), np.asarray(speakers)
+    present = sorted(set(emotions.tolist()))
     if EMOTIONS.index("neutral") not in present:
         raise EmogestureError("emotion perception needs neutral training windows")
-    means = np.stack([e[y == k].mean(0) for k in present])
-    within = e - means[np.searchsorted(present, y)]
-    scale = np.sqrt((within * within).mean(0)).clip(1e-6)
-    p = EmotionPerception([EMOTIONS[k] for k in present], means, scale, 1.0, {})
-    d = p.distances(held_out_emotion).min(1)
-    p.threshold = float(np.quantile(d, quantile))
-    p.info = {"train_windows": int(len(e)), "held_out_windows": int(len(d)), "quantile": float(quantile),
-              "held_out_distance_median": float(np.median(d))}
-    return p
+    emotion = LatentRange.fit(train.emotion, emotions)
+    voice = LatentRange.fit(train.style, speakers)
+    d_emotion, d_voice = emotion.nearest(held_out.emotion), voice.nearest(held_out.style)
+    emotion.threshold = float(np.quantile(d_emotion, quantile))
+    voice.threshold = float(np.quantile(d_voice, quantile))
+    info = {"train_windows": int(len(emotions)), "held_out_windows": int(len(d_emotion)), "quantile": float(quantile),
+            "held_out_distance_median": {"emotion": float(np.median(d_emotion)), "voice": float(np.median(d_voice))}}
+    return EmotionPerception([EMOTIONS[k] for k in present], emotion, voice, info)
 
 
 def perception_of(encoder: SpeechLatentEncoder) -> EmotionPerception | None:
@@ -103,7 +154,7 @@ class PerceivedEmotion:
     starts_s: list[float]
     labels: list[str]  # per window, the classifier's emotion
     probabilities: np.ndarray  # [W, 8] softmax of the emotion logits
-    distance: np.ndarray | None  # [W] distance to the nearest emotion mean (None: model not calibrated)
+    distance: np.ndarray | None  # [W, 2] emotion / voice distance over its threshold (None: not calibrated)
     trust: np.ndarray | None  # [W]
 
     @property
@@ -125,8 +176,8 @@ class PerceivedEmotion:
             return text + "; this speech model has no perception calibration, its emotion latent is used as is"
         low = int((self.trust < 1.0).sum())
         if mode == "auto" and low:
-            return (text + f"; in {low} of {n} windows the voice is unlike the training voices (distance above "
-                    "the calibrated threshold), so their emotion is blended toward neutral (--emotion own keeps it)")
+            return (text + f"; in {low} of {n} windows the voice or its emotion is unlike the training speech "
+                    "(beyond the calibrated range), so their emotion is blended toward neutral (--emotion own keeps it)")
         if low:
             return text + f"; {low} of {n} windows lie outside the training voices' range (kept: --emotion own)"
         return text + "; every window within the training voices' range"
@@ -138,7 +189,8 @@ class PerceivedEmotion:
                    "emotion": self.labels[i],
                    "probabilities": {k: round(float(v), 4) for k, v in zip(EMOTIONS, self.probabilities[i])}}
             if self.distance is not None:
-                row["distance"] = round(float(self.distance[i]), 4)
+                row["emotion_distance"] = round(float(self.distance[i, 0]), 4)
+                row["voice_distance"] = round(float(self.distance[i, 1]), 4)
                 row["trust"] = round(float(self.trust[i]), 4)
             rows.append(row)
         label, count = self.majority
@@ -154,17 +206,18 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
     labels = [EMOTIONS[int(k)] for k in probs.argmax(1)]
     distance = trust = None
     if perception is not None:
-        distance = perception.distances(enc.emotion).min(1)
-        trust = perception.trust(enc.emotion)
+        distance = np.stack([perception.emotion.nearest(enc.emotion) / perception.emotion.threshold,
+                             perception.voice.nearest(enc.style) / perception.voice.threshold], 1)
+        trust = perception.trust(enc.emotion, enc.style)
     return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust)
 
 
-def auto_emotion(emotion: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
-    """Emotion latents ``[W, D]`` blended toward the neutral mean by ``1 − trust`` (``--emotion auto``);
-    unchanged when the model has no perception calibration."""
+def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
+    """Emotion latents ``[W, D]`` (with the same windows' style latents) blended toward the neutral mean
+    by ``1 − trust`` (``--emotion auto``); unchanged when the model has no perception calibration."""
     if perception is None:
         return emotion
-    w = perception.trust(emotion)[:, None]
+    w = perception.trust(emotion, style)[:, None]
     return (w * emotion + (1.0 - w) * perception.neutral()[None]).astype(np.float32)
 
 
@@ -191,7 +244,8 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     cache = open_cache(cache_dir)
     train = encoder.encode_split(cache, "train")
     held = encoder.encode_split(cache, split)
-    perception = fit_perception(train.emotion, np.asarray(cache.split("train").emotion), held.emotion, quantile)
+    windows = cache.split("train")
+    perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile)
     perception.info.update(split=split, trained_on=trained_on)
     extra = {**loaded.extra, "train_splits": trained_on, "emotion_perception": perception.to_dict()}
     save_model(out, "speech", loaded.model, loaded.config, extra)
