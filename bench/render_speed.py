@@ -1,0 +1,45 @@
+"""Render speed of the MP4 preview: wall seconds of `save_mp4` per second of animation.
+
+The issue's target: at most 0.5 s of compute per second of animation on a 2-core machine. Motion is
+smooth random rotations on every joint (speed of rendering does not depend on which motion).
+Usage: python bench/render_speed.py [SECONDS]   (default 20)
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from emogesture.export import save_mp4
+from emogesture.types import SMPLXSequence
+
+
+def main(seconds: float = 20.0) -> None:
+    frames = int(round(seconds * 30))
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, seconds, frames)[:, None, None]
+    amp = rng.uniform(0.05, 0.3, (1, 55, 3))
+    amp[:, 16:22] *= 3
+    poses = (amp * np.sin(2 * np.pi * rng.uniform(0.2, 1.0, (1, 55, 3)) * t + rng.uniform(0, 6, (1, 55, 3))))
+    seq = SMPLXSequence(poses=poses.astype(np.float32), trans=np.zeros((frames, 3), np.float32))
+    audio = (0.05 * rng.normal(size=int(seconds * 16000)).astype(np.float32), 16000)
+    with tempfile.TemporaryDirectory() as d:
+        cpu0, child0, wall0 = time.process_time(), resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        save_mp4(seq, Path(d) / "bench.mp4", audio=audio, label="bench.wav\nemotion: own  |  style: own\nseed 0")
+        wall = time.perf_counter() - wall0
+        child1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = time.process_time() - cpu0
+        ffmpeg = (child1.ru_utime + child1.ru_stime) - (child0.ru_utime + child0.ru_stime)
+    print(f"{frames} frames ({seconds:g} s of animation) on {os.cpu_count()} cores: wall {wall:.2f} s = "
+          f"{wall / seconds:.3f} s per s of animation (target <= 0.5); CPU: rendering {cpu / frames * 1000:.1f} ms "
+          f"per frame, ffmpeg {ffmpeg / frames * 1000:.1f} ms per frame")
+
+
+if __name__ == "__main__":
+    main(float(sys.argv[1]) if len(sys.argv) > 1 else 20.0)
