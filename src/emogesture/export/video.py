@@ -11,6 +11,7 @@ naming the speech, the emotion / style source and the seed is drawn in the top-l
 
 from __future__ import annotations
 
+import multiprocessing as mp
 import os
 import shutil
 import subprocess
@@ -193,14 +194,41 @@ class MannequinRenderer:
         solid = alpha[:, 0] >= 0.5
         zflat[pix[solid]] = depth[solid]
 
-    def frames(self, seq: SMPLXSequence, camera: Camera | None = None) -> Iterator[np.ndarray]:
-        """RGB frames ``[H, W, 3]`` uint8 of the whole sequence (forward kinematics batched)."""
+    def frames(self, seq: SMPLXSequence, camera: Camera | None = None, overlay: np.ndarray | None = None,
+               workers: int = 1) -> Iterator[np.ndarray]:
+        """RGB frames ``[H, W, 3]`` uint8 of the whole sequence, in order (forward kinematics batched),
+        with the ``overlay`` label pasted; ``workers > 1`` draws chunks of frames in that many forked
+        processes (the drawing is numpy alone)."""
         camera = camera or Camera.upper_body(seq, self.width, self.height)
         body = SkeletonBody(seq.betas)
         with torch.no_grad():
             joints = body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).double().numpy()
-        for frame in joints:
-            yield self.draw(frame, camera)
+        job = (self, joints, camera, overlay)
+        if workers <= 1 or len(joints) < 2 * _CHUNK or "fork" not in mp.get_all_start_methods():
+            for i in range(len(joints)):
+                yield _draw(job, i)
+            return
+        global _JOB
+        _JOB = job  # inherited by the forked workers
+        chunks = [(i, min(i + _CHUNK, len(joints))) for i in range(0, len(joints), _CHUNK)]
+        with mp.get_context("fork").Pool(workers) as pool:
+            for block in pool.imap(_draw_chunk, chunks):
+                yield from block
+        _JOB = None
+
+
+_CHUNK = 16  # frames a worker draws per task
+_JOB = None
+
+
+def _draw(job, i: int) -> np.ndarray:
+    renderer, joints, camera, overlay = job
+    frame = renderer.draw(joints[i], camera)
+    return frame if overlay is None else _paste(frame, overlay)
+
+
+def _draw_chunk(bounds: tuple[int, int]) -> np.ndarray:
+    return np.stack([_draw(_JOB, i) for i in range(*bounds)])
 
 
 def label_overlay(text: str, width: int) -> np.ndarray | None:
@@ -254,15 +282,14 @@ def save_mp4(seq: SMPLXSequence, path: str | PathLike[str], *, audio: tuple[np.n
             wav = Path(work) / "speech.wav"
             sf.write(str(wav), np.asarray(audio[0], np.float32).clip(-1, 1), int(audio[1]), subtype="PCM_16")
             cmd += ["-i", str(wav), "-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "96k"]
-        cmd += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "20", "-pix_fmt", "yuv420p",
+        cmd += ["-c:v", "libx264", "-preset", "superfast", "-crf", "20", "-pix_fmt", "yuv420p",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
         proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         try:
-            frames = tqdm(renderer.frames(seq), total=seq.num_frames, desc=f"rendering {Path(path).name}",
-                          unit="frame", disable=not progress, leave=False)
+            frames = tqdm(renderer.frames(seq, overlay=overlay, workers=min(os.cpu_count() or 1, 2)),
+                          total=seq.num_frames, desc=f"rendering {Path(path).name}", unit="frame",
+                          disable=not progress, leave=False)
             for frame in frames:
-                if overlay is not None:
-                    frame = _paste(frame, overlay)
                 proc.stdin.write(frame.tobytes())
             proc.stdin.close()
         except BrokenPipeError:
