@@ -1,11 +1,14 @@
 """Model files: round trip, atomic writes, and one-line errors for the wrong file."""
 
 import json
+import re
+import subprocess
+import sys
 
 import pytest
 import torch
 
-from emogesture.checkpoints import load_model, read_meta, save_model
+from emogesture.checkpoints import _sha256, content_checksum, load_model, read_meta, save_model
 from emogesture.errors import InputFileError, OutputExistsError
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
 
@@ -51,3 +54,102 @@ def test_errors_name_the_file(tmp_path):
     (tmp_path / "x.json").write_text("{not json")
     with pytest.raises(InputFileError, match="x.json"):
         load_model(tmp_path / "x.json", "extractor")
+
+
+def _reseal(meta_path, change):
+    """Edit a model JSON and give it a matching content checksum (a file from a buggy writer)."""
+    meta = json.loads(meta_path.read_text())
+    change(meta)
+    meta["checksum_sha256"] = content_checksum(meta)
+    meta_path.write_text(json.dumps(meta))
+
+
+def test_an_edited_config_that_keeps_the_shapes_is_refused(tmp_path):
+    model = _model()
+    meta_path = save_model(tmp_path / "run", "extractor", model, model.config, {"motion_mean": [0.0]})
+    meta = json.loads(meta_path.read_text())
+    meta["config"]["dropout"] = 0.5  # same shapes, another model
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(InputFileError, match=r"model.json: its content does not match its checksum"):
+        load_model(tmp_path / "run", "extractor")
+    meta = json.loads(meta_path.read_text())
+    meta["config"]["dropout"] = model.config.dropout
+    meta["extra"]["motion_mean"] = [1.0]  # the stored statistics are covered too
+    meta_path.write_text(json.dumps(meta))
+    with pytest.raises(InputFileError, match="checksum"):
+        load_model(tmp_path / "run", "extractor")
+
+
+def test_every_broken_file_is_a_one_line_error_naming_it(tmp_path):
+    model = _model()
+    run = tmp_path / "run"
+    meta_path = save_model(run, "extractor", model, model.config)
+    weights = run / "model.safetensors"
+    good_meta, good_weights = meta_path.read_text(), weights.read_bytes()
+
+    def expect(pattern, name="model.json"):
+        with pytest.raises(InputFileError) as err:
+            load_model(run, "extractor")
+        message = str(err.value)
+        assert "\n" not in message and name in message and re.search(pattern, message), message
+        meta_path.write_text(good_meta)
+        weights.write_bytes(good_weights)
+
+    _reseal(meta_path, lambda m: m.pop("config"))
+    expect("no valid 'config'")
+    _reseal(meta_path, lambda m: m["config"].update(ff_dim=-64))
+    expect("invalid stored config")
+    _reseal(meta_path, lambda m: m["config"].update(depth=m["config"]["depth"] + 1))
+    expect("do not fit the stored config", "model.safetensors")
+    other = MotionFeatureExtractor(ExtractorConfig(**{**json.loads(good_meta)["config"],
+                                                      "ff_dim": 2 * model.config.ff_dim}))
+    save_model(tmp_path / "wide", "extractor", other, other.config)
+    weights.write_bytes((tmp_path / "wide" / "model.safetensors").read_bytes())
+    _reseal(meta_path, lambda m: m.update(weights_sha256=_sha256(weights)))
+    expect("size mismatch|do not fit", "model.safetensors")
+    weights.write_bytes(b"\x00" * 64)
+    _reseal(meta_path, lambda m: m.update(weights_sha256=_sha256(weights)))
+    expect("corrupt weights file", "model.safetensors")
+    meta_path.write_bytes(b"\xff\xfe\x00garbage")
+    expect("not a readable model description")
+    weights.unlink()
+    weights.mkdir()  # unreadable (a folder where the weights should be)
+    with pytest.raises(InputFileError, match=r"model.safetensors: cannot read the weights"):
+        load_model(run, "extractor")
+
+
+_KILLED_SAVE = """
+import os, sys, torch
+from emogesture import checkpoints
+from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
+when = sys.argv[2]
+real_replace = os.replace
+def replace(src, dst):
+    if when == "before_json" and str(dst).endswith("model.json"):
+        os._exit(9)
+    real_replace(src, dst)
+os.replace = replace
+if when == "after_json":
+    checkpoints._commit_pending = lambda *a: os._exit(9)
+torch.manual_seed(1)
+model = MotionFeatureExtractor(ExtractorConfig.preset("tiny"))
+checkpoints.save_model(sys.argv[1], "extractor", model, model.config, {"which": "new"})
+"""
+
+
+@pytest.mark.parametrize("when", ["before_json", "after_json"])
+def test_a_save_killed_between_its_two_writes_leaves_one_whole_model(tmp_path, when):
+    model = _model(0)
+    save_model(tmp_path / "run", "extractor", model, model.config, {"which": "old"})
+    proc = subprocess.run([sys.executable, "-c", _KILLED_SAVE, str(tmp_path / "run"), when])
+    assert proc.returncode == 9
+    loaded = load_model(tmp_path / "run", "extractor")
+    want = "old" if when == "before_json" else "new"
+    assert loaded.extra["which"] == want
+    reference = model if want == "old" else _model(1)
+    for k, v in reference.state_dict().items():
+        assert torch.equal(loaded.model.state_dict()[k], v), k
+    # the next save cleans up whatever the killed one left
+    save_model(tmp_path / "run", "extractor", model, model.config, {"which": "again"})
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
+    assert load_model(tmp_path / "run", "extractor").extra["which"] == "again"

@@ -112,7 +112,7 @@ def test_generation_is_seeded_and_batch_independent(trained):
 
 
 def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
-    from emogesture.checkpoints import _sha256, model_paths
+    from emogesture.checkpoints import _sha256, content_checksum, model_paths
     from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
     from safetensors.torch import load_file, save_file
 
@@ -151,6 +151,7 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     save_file(state, str(weights))
     meta = json.loads(meta_path.read_text())
     meta["weights_sha256"] = _sha256(weights)
+    meta["checksum_sha256"] = content_checksum(meta)
     meta_path.write_text(json.dumps(meta))
     old = load_model(tmp_path / "cal", "gesture")
     assert not old.model.calibrated

@@ -1,9 +1,9 @@
 """Model files: safetensors weights + a JSON of config, statistics and version (SPEC §9).
 
-A model is stored as two files side by side, ``<name>.safetensors`` and ``<name>.json``; both are
-written atomically (temporary file + rename), weights first, so a JSON always describes complete
-weights. Loading never unpickles anything and checks the model kind, the format version and the
-weights' checksum, with one-line errors naming the file.
+A model is stored as two files side by side, ``<name>.safetensors`` and ``<name>.json``, saved as one
+(see :func:`save_model`: a save killed at any point leaves the old model or the new one). The JSON
+holds the weights' checksum and a checksum of its own content. Loading never unpickles anything and
+checks the model kind, the format version and both checksums, with one-line errors naming the file.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from emogesture.config import from_dict, to_dict
 from emogesture.errors import ConfigError, InputFileError, OutputExistsError
 
 FORMAT = "emogesture-model"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # 1: before the content checksum (read without it)
 
 
 @dataclass
@@ -76,13 +77,33 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Write through a temporary file in ``path``'s folder: written, flushed to disk, then renamed."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
         write(Path(tmp))
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
+        _fsync_dir(path.parent)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -103,6 +124,18 @@ def model_paths(path: str | PathLike[str], name: str = "model") -> tuple[Path, P
     return p / f"{name}.safetensors", p / f"{name}.json"
 
 
+def pending_weights(weights: Path) -> Path:
+    """Where a save keeps the new weights until its JSON is in place (see :func:`save_model`)."""
+    return weights.with_name(f".{weights.name}.pending")
+
+
+def content_checksum(meta: dict) -> str:
+    """SHA-256 of what a model file means: its kind, config, stored data (``extra``) and the weights'
+    own checksum, as canonical JSON. Stored as ``checksum_sha256``; any edit of the JSON is refused."""
+    blob = {k: meta.get(k) for k in ("kind", "config", "extra", "weights_sha256")}
+    return hashlib.sha256(json.dumps(blob, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
 def save_model(
     path: str | PathLike[str],
     kind: str,
@@ -119,6 +152,11 @@ def save_model(
     ``extra`` holds JSON-safe data stored with the model (normalisation statistics, label names,
     per-class mean latents, ...). ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
     tensors in that type (they are cast back to the model's type when loaded).
+
+    The pair is replaced as one: the new weights go to a hidden pending file first, then the JSON (which
+    names their checksum) replaces the old one — the moment the new model exists — and only then do the
+    weights take their place. A save killed before the JSON's rename leaves the old model; one killed
+    after it leaves the new one, whose weights :func:`load_model` finds in the pending file.
     """
     weights, meta_path = model_paths(path, name)
     weights.parent.mkdir(parents=True, exist_ok=True)
@@ -127,7 +165,12 @@ def save_model(
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     if weights_dtype is not None:
         state = {k: v.to(weights_dtype) if v.is_floating_point() else v for k, v in state.items()}
-    _atomic_write(weights, lambda tmp: save_file(state, str(tmp), metadata={"format": FORMAT, "kind": kind}))
+    pending = pending_weights(weights)
+    # one metadata key only: safetensors writes a dict's keys in an order that changes from run to run,
+    # and the same weights must give the same bytes (and checksum)
+    for stale in [*weights.parent.glob(f".{meta_path.name}.*.tmp"), *weights.parent.glob(f".{pending.name}.*.tmp")]:
+        stale.unlink(missing_ok=True)  # left by a save that was killed (one save per model at a time)
+    _atomic_write(pending, lambda tmp: save_file(state, str(tmp), metadata={"format": FORMAT}))
     meta = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -136,55 +179,101 @@ def save_model(
         "config": to_dict(config),
         "extra": extra or {},
         "weights": weights.name,
-        "weights_sha256": _sha256(weights),
+        "weights_sha256": _sha256(pending),
     }
+    meta["checksum_sha256"] = content_checksum(meta)
     _atomic_write(meta_path, lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
+    _commit_pending(pending, weights)
     return meta_path
 
 
+def _commit_pending(pending: Path, weights: Path) -> None:
+    os.replace(pending, weights)
+    _fsync_dir(weights.parent)
+
+
 def read_meta(path: str | PathLike[str], kind: str | None = None, name: str = "model") -> dict:
-    """The JSON of a model file, checked for format, version and (if given) kind."""
+    """The JSON of a model file, checked for format, version, content checksum and (if given) kind."""
     weights, meta_path = model_paths(path, name)
     if not meta_path.is_file():
         raise InputFileError(meta_path, "model file not found")
     try:
         meta = json.loads(meta_path.read_text())
-    except (OSError, ValueError) as e:
-        raise InputFileError(meta_path, f"not a readable model description ({e.__class__.__name__})")
+    except UnicodeDecodeError:
+        raise InputFileError(meta_path, "not a readable model description (not text)") from None
+    except OSError as e:
+        raise InputFileError(meta_path, f"cannot read it ({e.strerror or e})") from None
+    except ValueError as e:
+        raise InputFileError(meta_path, f"not a readable model description ({e.__class__.__name__})") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise InputFileError(meta_path, "not an emogesture model file")
-    if meta.get("format_version") != FORMAT_VERSION:
+    version = meta.get("format_version")
+    if version not in READABLE_VERSIONS:
         raise InputFileError(
             meta_path,
-            f"model format version {meta.get('format_version')} is not supported by this emogesture "
-            f"{__version__} (expects {FORMAT_VERSION})",
+            f"model format version {version} is not supported by this emogesture "
+            f"{__version__} (reads {', '.join(map(str, READABLE_VERSIONS))})",
         )
+    for key, tp in (("kind", str), ("config", dict), ("extra", dict), ("weights_sha256", str)):
+        if not isinstance(meta.get(key), tp):
+            raise InputFileError(meta_path, f"model description has no valid {key!r}")
+    if version >= 2 and meta.get("checksum_sha256") != content_checksum(meta):
+        raise InputFileError(meta_path, "its content does not match its checksum (the JSON was edited or damaged)")
     if kind is not None and meta.get("kind") != kind:
         raise InputFileError(meta_path, f"holds a {meta.get('kind')!r} model, but a {kind!r} model is needed")
     return meta
 
 
+def _weights_file(weights: Path, want: str) -> Path:
+    """The weights that match the JSON: in place, or left pending by a save interrupted after its JSON
+    was written (then moved into place when the folder is writable)."""
+    try:
+        if weights.exists() and _sha256(weights) == want:
+            return weights
+        pending = pending_weights(weights)
+        if pending.is_file() and _sha256(pending) == want:
+            try:
+                _commit_pending(pending, weights)
+                return weights
+            except OSError:
+                return pending
+    except OSError as e:
+        raise InputFileError(weights, f"cannot read the weights ({e.strerror or e})") from None
+    if not weights.is_file():
+        raise InputFileError(weights, "model weights not found next to its .json")
+    raise InputFileError(weights, "weights do not match their .json (checksum differs); the files are from different saves")
+
+
 def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", device: str = "cpu") -> LoadedModel:
-    """Rebuild a model of ``kind`` from its files and load its weights (eval mode)."""
+    """Rebuild a model of ``kind`` from its files and load its weights (eval mode).
+
+    Every problem with the files is an :class:`InputFileError` naming the file: missing, unreadable or
+    corrupt JSON or weights, an edited JSON, weights from another save, a stored config that does not
+    build or does not fit the weights.
+    """
     _builtin_kinds()
     if kind not in _KINDS:
         raise ValueError(f"unknown model kind {kind!r}")
     weights, meta_path = model_paths(path, name)
     meta = read_meta(path, kind, name)
-    if not weights.is_file():
-        raise InputFileError(weights, "model weights not found next to its .json")
-    if _sha256(weights) != meta.get("weights_sha256"):
-        raise InputFileError(weights, "weights do not match their .json (checksum differs); the files are from different saves")
+    weights = _weights_file(weights, meta["weights_sha256"])
     try:
         config = from_dict(_KINDS[kind].config_cls, meta["config"])
+        model = _KINDS[kind].build(config)
     except ConfigError as e:
-        raise InputFileError(meta_path, f"invalid stored config ({e})")
-    model = _KINDS[kind].build(config)
+        raise InputFileError(meta_path, f"invalid stored config ({e})") from None
+    except (RuntimeError, ValueError, TypeError, AttributeError) as e:
+        raise InputFileError(meta_path, f"invalid stored config: the model cannot be built from it "
+                             f"({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
     try:
         state = load_file(str(weights), device=device)
-    except (SafetensorError, OSError) as e:
-        raise InputFileError(weights, f"corrupt weights file ({e})")
-    missing, unexpected = model.load_state_dict(state, strict=False)
+    except (SafetensorError, OSError, ValueError) as e:
+        raise InputFileError(weights, f"corrupt weights file ({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
+    try:
+        missing, unexpected = model.load_state_dict(state, strict=False)
+    except RuntimeError as e:
+        detail = next((ln.strip() for ln in str(e).splitlines() if "size mismatch" in ln), "shapes differ")
+        raise InputFileError(weights, f"weights do not fit the stored config ({detail.rstrip('.')})") from None
     missing = [k for k in missing if k not in getattr(model, "optional_state_keys", ())]
     if missing or unexpected:
         raise InputFileError(
@@ -192,6 +281,55 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         )
     model.to(device).eval()
     return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path)
+
+
+def trained_splits(loaded: LoadedModel) -> list[str]:
+    """The cache splits a model's weights were fitted on: stored in its file (``extra.train_splits``);
+    for files written before that was stored, a speech model's ``run.json``, and ``train`` for gesture
+    models and extractors (which only ever trained on it)."""
+    if "train_splits" in loaded.extra:
+        return list(loaded.extra["train_splits"])
+    if loaded.meta.get("kind") in ("gesture", "extractor"):
+        return ["train"]
+    try:
+        blob = json.loads((Path(loaded.path).parent / "run.json").read_text())
+        return list(blob["config"]["train_splits"])
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputFileError(loaded.path, "does not record the splits it was trained on (no train_splits, no "
+                             "run.json beside it)") from None
+
+
+def refuse_trained_split(split: str, *models: LoadedModel, purpose: str = "evaluate") -> None:
+    """A one-line error when any of ``models`` trained on ``split`` (numbers there would not be held out)."""
+    for m in models:
+        used = trained_splits(m)
+        if split in used:
+            raise InputFileError(m.path, f"was trained on the {split} split ({'+'.join(used)}); {purpose} on "
+                                 "windows no part of the model saw")
+
+
+def calibration_splits(loaded: LoadedModel) -> dict[str, str]:
+    """Calibrations stored in a model file and the split each was measured on (its windows are not
+    held out for numbers of this model): e.g. ``{"residual_calibration": "val"}``."""
+    found = {}
+    for key in ("residual_calibration", "emotion_perception"):
+        blob = loaded.extra.get(key)
+        if isinstance(blob, dict):
+            split = blob.get("split", (blob.get("info") or {}).get("split"))
+            if split:
+                found[key] = str(split)
+    return found
+
+
+def split_use(split: str, models: dict[str, LoadedModel]) -> dict:
+    """What the models (name -> loaded) did with ``split``; refuses a split any of them trained on.
+    ``held_out`` is True only when no model trained or calibrated on it."""
+    for m in models.values():
+        refuse_trained_split(split, m)
+    calibrated = {f"{name}: {key}": s for name, m in models.items() for key, s in calibration_splits(m).items()
+                  if s == split}
+    return {"split": split, "trained_on": {name: trained_splits(m) for name, m in models.items()},
+            "calibrated_on_it": sorted(calibrated), "held_out": not calibrated}
 
 
 CHECKSUMS = "SHA256SUMS"

@@ -16,7 +16,8 @@ import numpy as np
 import torch
 
 from emogesture.audio import detect_onsets, load_audio
-from emogesture.checkpoints import LoadedModel, load_model, write_text_atomic
+from emogesture.eval.report import split_use_line
+from emogesture.checkpoints import LoadedModel, load_model, split_use, write_text_atomic
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import SplitWindows, WindowsCache, open_cache
@@ -116,6 +117,7 @@ class GestureEvaluator:
 
 def gesture_markdown(result: dict) -> str:
     lines = [f"# Gesture evaluation: {result['split']} split, {result['windows']} windows", "",
+             split_use_line(result.get("split_use")), "",
              "| source | " + " | ".join(COLUMNS) + " |", "|---|" + "---|" * len(COLUMNS)]
     for name, row in result["rows"].items():
         lines.append(f"| {name} | " + " | ".join(_fmt(row[c]) for c in COLUMNS) + " |")
@@ -134,10 +136,12 @@ def _fmt(v: float) -> str:
 
 def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_dir: Path, split: str = "test",
                      baselines: bool = True, seed: int = 0, overwrite: bool = False,
-                     evaluator: GestureEvaluator | None = None) -> dict:
+                     evaluator: GestureEvaluator | None = None, models: dict | None = None) -> dict:
     """Score ``sources`` (name -> raw features ``[W, T, D]``, or ``(features, target labels)``, or a
     folder of npz files) and the built-in baselines; writes JSON, markdown and confusion PNGs.
-    ``evaluator``: an already built :class:`GestureEvaluator` of the same cache, split and extractor."""
+    ``evaluator``: an already built :class:`GestureEvaluator` of the same cache, split and extractor;
+    ``models``: the loaded models behind ``sources`` (name -> LoadedModel), whose use of ``split`` (trained
+    on it: refused; calibrated on it: noted) the report records."""
     from emogesture.eval import sources as src
 
     t0 = time.monotonic()
@@ -148,6 +152,7 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
             raise OutputExistsError(p)
     cache = open_cache(cache_dir)
     ev = evaluator or GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
+    use = split_use(split, {"extractor": ev.extractor, **(models or {})})
     w = ev.windows
     todo: dict = {"GT": src.ground_truth(w)}
     if baselines:
@@ -167,7 +172,7 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         save_confusion_matrix(cm, list(EMOTIONS), out_dir / f"gesture_{split}_{slug}_emotion_confusion.png",
                               title=f"{name}: GA {rows[name]['GA']:.3f}", overwrite=True)
     result = {
-        "split": split, "windows": len(w), "cache": str(cache_dir), "extractor": str(extractor_run),
+        "split": split, "windows": len(w), "cache": str(cache_dir), "extractor": str(extractor_run), "split_use": use,
         "rows": rows, "gt_split_half_fgd": ev.split_half_fgd(seed),
         "audio_onsets": ev.onsets is not None,
         "constants": {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in METRIC_CONSTANTS.items()},

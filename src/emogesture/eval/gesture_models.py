@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import load_audio, window_starts
-from emogesture.checkpoints import load_model, write_text_atomic
+from emogesture.checkpoints import load_model, split_use, write_text_atomic
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache, open_cache
 from emogesture.errors import EmogestureError, OutputExistsError
@@ -241,12 +241,17 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
     edit_model = edit_model or main
     sources: dict = {}
     auto_trust: dict = {}
-    loaded = {}
+    loaded: dict = {}
+    parts: dict = {}  # every model behind the numbers, for the report's split use
     for name, run in models.items():
         gesture = load_model(run, "gesture")
         loaded[name] = gesture
         variant = gesture.extra.get("variant", gesture.config.variant)
         speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
+        parts[name] = gesture
+        if speech is not None:
+            parts[f"{name}: speech model"] = speech.loaded
+        split_use(split, parts)  # refuses a split any part trained on, before the work
         conds = window_conditions(variant, cache, split, speech)
         seeds = window_seeds(seed, len(windows))
         sources[name] = generate_from_conditions(gesture, conds, seeds)
@@ -264,7 +269,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
             sources[f"{name}, emotion edit"] = (edited, targets)
     ev = GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
     table = evaluate_gesture(cache_dir, extractor_run, sources, out_dir, split, seed=seed, overwrite=overwrite,
-                             evaluator=ev)
+                             evaluator=ev, models=parts)
     recon = {"mean pose": {"joint_error_m": mean_joint_error(ev.embed(src.mean_pose(windows, cache)).joints,
                                                              ev.gt.joints)}}
     for name, gesture in loaded.items():

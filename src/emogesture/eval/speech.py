@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.checkpoints import write_text_atomic
+from emogesture.eval.report import split_use_line
+from emogesture.checkpoints import split_use, write_text_atomic
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.quadruples import QuadrupleIndex, WindowLabels
@@ -28,19 +29,20 @@ RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_e
 
 
 @torch.no_grad()
-def reconstruction_errors(encoder: SpeechLatentEncoder, windows, train, num_quadruples: int, seed: int,
+def reconstruction_errors(encoder: SpeechLatentEncoder, windows, partner, num_quadruples: int, seed: int,
                           batch_size: int = 8) -> dict[str, float]:
     """Mean L1 filterbank errors Self, XCon, XEmo, XSty over seeded held-out quadruples.
 
     The first text ``c1`` of every quadruple is one of the evaluated split's; ``c2`` is another text of
-    the same emotion from that split or, when it has none, from the training split.
+    the same emotion from that split or from ``partner``, windows of another split the model never
+    trained on (each split of the synthetic corpus has one text per emotion).
     """
-    labels = WindowLabels.concat(windows, train)
+    labels = WindowLabels.concat(windows, partner)
     n = len(windows)
     index = QuadrupleIndex(labels, first_texts=set(windows.text.tolist()))
 
     def fbank(j: int) -> np.ndarray:
-        return np.asarray(windows.fbank[j] if j < n else train.fbank[j - n], np.float32)
+        return np.asarray(windows.fbank[j] if j < n else partner.fbank[j - n], np.float32)
 
     rng = np.random.default_rng(seed)
     speakers = {s: i for i, s in enumerate(encoder.speakers)}
@@ -109,6 +111,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
             if p.exists():
                 raise OutputExistsError(p)
     encoder = SpeechLatentEncoder.from_run(run)
+    use = split_use(split, {"speech": encoder.loaded})
     cache = open_cache(cache_dir)
     test = cache.split(split)
     enc = encoder.encode_split(cache, split)
@@ -131,15 +134,20 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
         probes[f"emotion_from_{latent}"] = linear_probe_accuracy(x_tr, train.emotion[sub], x_te, test.emotion)
         probes[f"speaker_from_{latent}"] = linear_probe_accuracy(x_tr, train.speaker_id[sub], x_te, test.speaker_id)
 
-    recon = reconstruction_errors(encoder, test, train, num_quadruples, seed)
+    # quadruples of held-out texts only: their second text from another split no part trained on
+    unseen = [s for s in cache.splits if s != split and s not in use["trained_on"]["speech"]]
+    recon = (reconstruction_errors(encoder, test, cache.split(unseen[0]), num_quadruples, seed) if unseen
+             else dict.fromkeys(RECON_COLUMNS))
     use = content_use(encoder, test, seed)
     result = {
-        "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test),
+        "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test), "split_use": use,
         "step": encoder.loaded.extra.get("step"),
         "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"],
         "SA": spk_rep["accuracy"], "SF1": spk_rep["macro_f1"], "speaker_windows": int(known.sum()),
         "reconstruction_l1": recon,
-        "reconstruction_relative_to_self": {k: v / recon["Self"] for k, v in recon.items()},
+        "reconstruction_relative_to_self": {k: (v / recon["Self"] if v is not None else None)
+                                            for k, v in recon.items()},
+        "reconstruction_partner_split": unseen[0] if unseen else None,
         "linear_probes": probes,
         "content_use": use,
         "constants": {"num_quadruples": num_quadruples, "seed": seed, "probe_train_windows": int(len(sub)),
@@ -162,13 +170,17 @@ def speech_markdown(r: dict) -> str:
     use = r["content_use"]
     lines = [
         f"# Speech disentanglement: {r['split']} split ({r['windows']} windows, step {r['step']})", "",
+        split_use_line(r.get("split_use")), "",
         "Classification (supp. Table A.1 layout)", "",
         "| EA | EF1 | SA | SF1 |", "|---|---|---|---|",
         f"| {r['EA']:.3f} | {r['EF1']:.3f} | {r['SA']:.3f} | {r['SF1']:.3f} |", "",
-        "Reconstruction L1 on the normalised filterbank (supp. Table A.2 layout; ratio to Self below)", "",
+        "Reconstruction L1 on the normalised filterbank (supp. Table A.2 layout; ratio to Self below); "
+        + (f"quadruples of {r['split']} texts paired with {r['reconstruction_partner_split']} texts of the same "
+           "emotion, neither trained on" if r.get("reconstruction_partner_split") else
+           "not measured: no second split of texts the model never trained on to pair with"), "",
         "| Self | XCon | XEmo | XSty |", "|---|---|---|---|",
-        "| " + " | ".join(f"{rec[k]:.4f}" for k in RECON_COLUMNS) + " |",
-        "| " + " | ".join(f"{rel[k]:.3f}" for k in RECON_COLUMNS) + " |", "",
+        "| " + " | ".join(_num(rec[k], 4) for k in RECON_COLUMNS) + " |",
+        "| " + " | ".join(_num(rel[k], 3) for k in RECON_COLUMNS) + " |", "",
         "Content use: reconstruction L1 over every window with its own latents, with the content latent of "
         "another window, and each window's own time-averaged spectrum (about what a reconstruction without any "
         "timing reaches)", "",
@@ -181,6 +193,10 @@ def speech_markdown(r: dict) -> str:
         lines.append(f"| {latent} | {pr[f'emotion_from_{latent}']:.3f} | {pr[f'speaker_from_{latent}']:.3f} |")
     lines += ["", f"Constants: {json.dumps(r['constants'])}", ""]
     return "\n".join(lines)
+
+
+def _num(v: float | None, digits: int) -> str:
+    return "n/a" if v is None else f"{v:.{digits}f}"
 
 
 def _jsonable(x):

@@ -29,11 +29,10 @@ import json
 from collections import Counter
 from dataclasses import dataclass
 from os import PathLike
-from pathlib import Path
 
 import numpy as np
 
-from emogesture.checkpoints import load_model, model_paths, save_model
+from emogesture.checkpoints import load_model, model_paths, refuse_trained_split, save_model, trained_splits
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.diffusion.residual import shrunk_covariance
@@ -237,9 +236,7 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
                 raise OutputExistsError(p)
     loaded = load_model(run, "speech")
     trained_on = trained_splits(loaded)
-    if split in trained_on:
-        raise InputFileError(loaded.path, f"was trained on the {split} split ({', '.join(trained_on)}); "
-                             "calibrate on windows it never saw")
+    refuse_trained_split(split, loaded, purpose="calibrate")
     encoder = SpeechLatentEncoder(loaded)
     cache = open_cache(cache_dir)
     train = encoder.encode_split(cache, "train")
@@ -250,15 +247,3 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     extra = {**loaded.extra, "train_splits": trained_on, "emotion_perception": perception.to_dict()}
     save_model(out, "speech", loaded.model, loaded.config, extra)
     return perception
-
-
-def trained_splits(loaded) -> list[str]:
-    """The cache splits a speech model trained on: from its file, else from its run folder's ``run.json``."""
-    if "train_splits" in loaded.extra:
-        return list(loaded.extra["train_splits"])
-    try:
-        blob = json.loads((Path(loaded.path).parent / "run.json").read_text())
-        return list(blob["config"]["train_splits"])
-    except (OSError, ValueError, KeyError, TypeError):
-        raise InputFileError(loaded.path, "does not record the splits it was trained on (no train_splits, no "
-                             "run.json beside it)") from None

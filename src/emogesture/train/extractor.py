@@ -86,7 +86,8 @@ def build(config: ExtractorTrainConfig, cache_dir: Path, seed: int):
 
     def export(m: ExtractorModule, run_dir: Path) -> None:
         extra = {"emotions": list(EMOTIONS), "motion_mean": stats["motion_mean"], "motion_std": stats["motion_std"],
-                 "features": data.cache.manifest["config"]["features"], "step": m.global_step}
+                 "features": data.cache.manifest["config"]["features"], "step": m.global_step,
+                 "train_splits": ["train"]}
         save_model(run_dir, "extractor", m.model, m.cfg.model, extra)
 
     return data, module, export

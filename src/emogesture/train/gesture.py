@@ -23,7 +23,8 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.checkpoints import LoadedModel, load_model, model_paths, save_model
+from emogesture.checkpoints import (LoadedModel, load_model, model_paths, refuse_trained_split, save_model,
+                                    trained_splits)
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
@@ -247,7 +248,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
     features = cache.manifest["config"]["features"]
     module = GestureModule(to_dict(config), mean.tolist(), std.tolist(), features, seed)
     extra = {"emotions": list(EMOTIONS), "motion_mean": mean.tolist(), "motion_std": std.tolist(),
-             "features": features, "variant": variant, "fps": 30}
+             "features": features, "variant": variant, "fps": 30, "train_splits": ["train"]}
     if speech is not None:
         enc_e = conds[1]
         extra["speech_model"] = str(Path(speech.loaded.path).resolve())
@@ -258,7 +259,12 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
     # residual-noise calibration on the held-out validation windows, once, when training ends
     calibration = None
     if config.model.diffusion.residual_scale > 0:
-        if "val" in cache.splits:
+        speech_trained = trained_splits(speech.loaded) if speech is not None else []
+        if "val" in speech_trained:
+            print(f"note: the speech model {speech.loaded.path} trained on the val split, so the residual noise is "
+                  "not calibrated there (the model samples without it); `emogesture calibrate gesture --split` "
+                  "on windows no part saw can add it", file=sys.stderr)
+        elif "val" in cache.splits:
             calibration = (window_conditions(variant, cache, "val", speech), cache.split("val").motion)
         else:
             print(f"note: {cache_dir} has no val windows, so the model will not be calibrated and will sample "
@@ -295,6 +301,7 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     cache = open_cache(cache_dir)
     variant = gesture.config.variant
     speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
+    refuse_trained_split(split, gesture, *([speech.loaded] if speech is not None else []), purpose="calibrate")
     windows = cache.split(split)
     stats = calibrate_residual(gesture, window_conditions(variant, cache, split, speech), windows.motion, seed=seed)
     stats.update(step=gesture.extra.get("step"), split=split)
