@@ -29,7 +29,8 @@ from emogesture.data.synthetic import CorpusConfig, build_corpus, plan_takes, te
 from emogesture.data.synthetic.speech import word_timings
 from emogesture.data.synthetic.takes import TakePlan, build_take
 from emogesture.errors import ConfigError, EmogestureError
-from emogesture.motion import ARM_JOINTS, LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, SkeletonBody, load_smplx_npz
+from emogesture.eval.metrics import beat_align, motion_beats
+from emogesture.motion import LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, SkeletonBody, load_smplx_npz
 
 MIN_SECONDS = 8.0
 SEED = 0
@@ -252,24 +253,6 @@ def _motion_features(poses: np.ndarray, joints: np.ndarray) -> np.ndarray:
     return np.concatenate([p.mean(0), p.std(0), v.mean(0), v.std(0)])
 
 
-def _motion_beats(joints: np.ndarray) -> np.ndarray:
-    """SPEC §8 BA motion beats: local minima (order 7) of each arm joint's speed over its mean, > 0.1."""
-    from scipy.signal import argrelextrema
-
-    v = np.linalg.norm(np.diff(joints[:, ARM_JOINTS], axis=0), axis=-1) * 30
-    beats = []
-    for k in range(v.shape[1]):
-        vk = v[:, k] / (v[:, k].mean() + 1e-9)
-        m = argrelextrema(vk, np.less, order=7)[0]
-        beats.append((m[vk[m] > 0.1] + 0.5) / 30.0)  # speed m lies between frames m and m + 1
-    return np.sort(np.concatenate(beats))
-
-
-def _beat_align(beats: np.ndarray, onsets: np.ndarray, sigma: float) -> float:
-    d = np.abs(beats[:, None] - onsets[None, :]).min(axis=1)
-    return float(np.exp(-(d**2) / (2 * sigma**2)).mean())
-
-
 @pytest.fixture(scope="module")
 def measured(corpus):
     root, _ = corpus
@@ -283,7 +266,7 @@ def measured(corpus):
         joints = body(torch.from_numpy(seq.poses)).numpy()
         rows.append(dict(emotion=info.emotion, speaker=info.speaker_id, split=splits[name],
                          audio=_audio_features(wave), motion=_motion_features(seq.poses, joints),
-                         onsets=detect_onsets(wave), beats=_motion_beats(joints), seconds=len(wave) / 16000))
+                         onsets=detect_onsets(wave), beats=motion_beats(joints), seconds=len(wave) / 16000))
     return rows
 
 
@@ -313,7 +296,8 @@ def test_emotion_and_speaker_recoverable_from_audio_and_motion(measured):
 
 @pytest.mark.slow
 def test_motion_beats_follow_the_audio_onsets(measured):
-    """BA (SPEC §8, σ 0.3 s) with the take's own onsets beats the same onsets shifted in time."""
+    """BA (SPEC §8, σ 0.3 s; the evaluation suite's own beats and score) with the take's own onsets beats the
+    same onsets shifted in time."""
     from scipy.stats import wilcoxon
 
     report = {}
@@ -321,8 +305,8 @@ def test_motion_beats_follow_the_audio_onsets(measured):
         own, shifted = [], []
         for r in measured:
             on, dur = r["onsets"], r["seconds"]
-            own.append(_beat_align(r["beats"], on, sigma))
-            shifted.append(np.mean([_beat_align(r["beats"], np.sort((on + s) % dur), sigma)
+            own.append(beat_align(r["beats"], on, sigma))
+            shifted.append(np.mean([beat_align(r["beats"], np.sort((on + s) % dur), sigma)
                                     for s in (0.37, 1.1, dur / 2)]))
         own, shifted = np.array(own), np.array(shifted)
         report[sigma] = (own.mean(), shifted.mean(), (own > shifted).mean(), wilcoxon(own, shifted).pvalue)

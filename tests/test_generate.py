@@ -81,8 +81,14 @@ def test_identity_edit_reproduces_the_unedited_output(runs):
     other = pipe.encode_file_latents(runs / "other.wav")
     edited = pipe.generate(wave, edit=EditRequest(emotion_from=other.emotion), seed=0)[0]
     assert not np.allclose(edited.poses, plain.poses)
-    half = pipe.generate(wave, edit=EditRequest(emotion_label="anger", emotion_weight=0.0), seed=0)[0]
-    assert np.allclose(half.poses, plain.poses, atol=1e-6)  # weight 0 = no edit
+    none = pipe.generate(wave, edit=EditRequest(emotion_label="anger", emotion_weight=0.0), seed=0)[0]
+    assert np.allclose(none.poses, plain.poses, atol=1e-6)  # weight 0 = no edit
+    half = pipe.generate(wave, edit=EditRequest(emotion_label="anger", emotion_weight=0.5), seed=0)[0]
+    full = pipe.generate(wave, edit=EditRequest(emotion_label="anger", emotion_weight=1.0), seed=0)[0]
+    styled = pipe.generate(wave, edit=EditRequest(style_from=other.style), seed=0)[0]
+    for changed in (half, full, styled):  # a label edit with weight > 0 and a style edit change the output
+        assert np.abs(changed.poses - plain.poses).max() > 1e-3
+    assert not np.allclose(half.poses, full.poses)
 
 
 def test_stitch_crossfades_without_jumps():

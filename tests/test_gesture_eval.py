@@ -48,6 +48,13 @@ def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
     assert rows["mean pose"]["Div"] < 1e-6 < rows["GT"]["Div"]
     assert rows["mean pose"]["Jerk"] < 1e-6 and rows["mean pose"]["Speed"] < 1e-6
     assert rows["GT"]["Speed"] > 0.01
+    # the baselines order as they must: real motion of the wrong moment is farther from the take's own
+    # motion (SRGR) the farther it comes from (1 s later < another text), and nearer than the mean pose (FGD)
+    shifted, mismatched = rows["GT, shifted 1 s"], rows["GT, mismatched audio"]
+    assert rows["GT"]["FGD"] < 1e-3 < min(shifted["FGD"], mismatched["FGD"])
+    assert max(shifted["FGD"], mismatched["FGD"]) < rows["mean pose"]["FGD"]
+    assert rows["GT"]["SRGR"] > shifted["SRGR"] > mismatched["SRGR"]
+    assert r["split_use"]["held_out"] and r["split_use"]["trained_on"] == {"extractor": ["train"]}
     md = (tmp_path / "report" / "gesture_test.md").read_text()
     assert "| other |" in md and "beat_sigma_s" in md
     assert (tmp_path / "report" / "gesture_test_other_emotion_confusion.png").read_bytes()[:4] == b"\x89PNG"

@@ -137,25 +137,31 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
     return seam_statistics(np.concatenate(seam_parts), np.concatenate(inside_parts)) | {"takes": len(seam_parts)}
 
 
-def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int,
-                     hop_seconds: float = 8.0) -> tuple[np.ndarray, list[float]]:
+SEAM_CANDIDATES = (4, 1)  # the generator's default (chosen on the seam statistic) and unselected windows
+
+
+def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = 8.0,
+                     seam_candidates: int = 4) -> tuple[np.ndarray, list[float]]:
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
-    seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds)[0]
+    seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds, seam_candidates=seam_candidates)[0]
     with torch.no_grad():
         joints = pipe.body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
     return joints, window_starts(len(wave) / 16000, WINDOW_SECONDS, hop_seconds).tolist()
 
 
 def long_audio_check(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = 8.0) -> dict:
-    """Generate for a long waveform; frame count and seam jumps (see :func:`seam_jumps`)."""
-    joints, starts = generated_joints(pipe, wave, seed, hop_seconds)
+    """Generate for a long waveform with the default seam chooser and with 1 candidate per window (no
+    selection): frame count and seam jumps of each (see :func:`seam_jumps`), keyed by candidates."""
     duration = len(wave) / 16000
-    return {"seconds": duration, "frames": len(joints), "expected_frames": int(round(duration * FPS)),
-            "hop_seconds": hop_seconds, **seam_jumps(joints, starts)}
+    out: dict = {"seconds": duration, "hop_seconds": hop_seconds, "expected_frames": int(round(duration * FPS))}
+    for k in SEAM_CANDIDATES:
+        joints, starts = generated_joints(pipe, wave, seed, hop_seconds, k)
+        out[f"candidates_{k}"] = {"frames": len(joints), **seam_jumps(joints, starts)}
+    return out
 
 
 def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, seed: int,
-                     hop_seconds: float = 8.0) -> dict:
+                     hop_seconds: float = 8.0, seam_candidates: int = 1) -> dict:
     """Every take of a split generated whole (its own audio, one emotion and speaker), seam and inside
     jumps pooled over the takes (see :func:`seam_statistics`): seams where the speech runs on, in
     thousands of jumps, next to :func:`ground_truth_seam_reference` over the same takes."""
@@ -164,7 +170,7 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
     takes = list(dict.fromkeys(cache.split(split).takes))
     for take in takes:
         wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
-        joints, starts = generated_joints(pipe, wave, seed, hop_seconds)
+        joints, starts = generated_joints(pipe, wave, seed, hop_seconds, seam_candidates)
         if len(starts) < 2:
             continue
         jump = largest_joint_jumps(joints)
@@ -174,12 +180,23 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
     if not seam_parts:
         raise EmogestureError(f"no take of the {split} split is long enough for window seams")
     return seam_statistics(np.concatenate(seam_parts), np.concatenate(inside_parts)) | {
-        "takes": len(seam_parts), "ground_truth": ground_truth_seam_reference(cache, split, takes, hop_seconds)}
+        "takes": len(seam_parts), "seam_candidates": seam_candidates,
+        "ground_truth": ground_truth_seam_reference(cache, split, takes, hop_seconds)}
+
+
+def _ratio(v: dict) -> float:
+    return v["max_seam_jump_m"] / v["p99_inside_jump_m"]
 
 
 def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str | None, recon: dict,
-                   long: dict | None) -> dict:
-    """The CPU experiment's thresholds as ``{name: {value, threshold, pass}}`` (pure function)."""
+                   long: dict | None, edit_control: float | None = None) -> dict:
+    """The experiment's thresholds as ``{name: {value, threshold, pass}}`` (pure function).
+
+    Every row with a threshold can fail for a bad model (``tests/test_gesture_checks.py`` feeds bad
+    rows); numbers that cannot (BA, which mismatched audio matches; Div, which any real-looking motion
+    matches; the chooser-selected seam ratio) are reported without a threshold. ``edit_control``: GA of
+    the unedited output against the edit targets (what an edit that changes nothing scores).
+    """
     gt, ours = rows["GT"], rows[model]
     checks = {}
 
@@ -190,36 +207,42 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
             ok = value < threshold if strict else value <= threshold
         checks[name] = {"value": float(value), "threshold": float(threshold), "pass": bool(ok)}
 
+    def report(name: str, value: float) -> None:
+        checks[f"{name} (reported)"] = {"value": float(value), "threshold": None, "pass": None}
+
     if model in recon:
         check("prior error / mean-pose error <= 0.25", recon[model]["joint_error_m"] / recon["mean pose"]["joint_error_m"],
               0.25, higher_is_better=False)
     check("GA / GA(GT) >= 0.7", ours["GA"] / gt["GA"], 0.7)
     if edit_row is not None:
         check("GA(emotion edit) / GA(GT) >= 0.5", rows[edit_row]["GA"] / gt["GA"], 0.5)
+        if edit_control is not None:
+            report("the unedited output scored against the edit targets, / GA(GT)", edit_control / gt["GA"])
     if f"{model}, emotion auto" in rows:
         check("|GA(emotion auto) - GA| <= 0.03", abs(rows[f"{model}, emotion auto"]["GA"] - ours["GA"]), 0.03,
               higher_is_better=False)
-    if np.isfinite(gt["BA"]):
-        check("BA / BA(GT) >= 0.9", ours["BA"] / gt["BA"], 0.9)
     for name in ablations:
         check(f"FGD / FGD({name}) < 1", ours["FGD"] / rows[name]["FGD"], 1.0, higher_is_better=False, strict=True)
     if "GT, mismatched audio" in rows:
-        checks["FGD / FGD(GT, mismatched audio) (reported)"] = {
-            "value": ours["FGD"] / max(rows["GT, mismatched audio"]["FGD"], 1e-12), "threshold": None, "pass": None}
-    check("|Div / Div(GT) - 1| <= 0.2", abs(ours["Div"] / gt["Div"] - 1.0), 0.2, higher_is_better=False)
+        report("FGD / FGD(GT, mismatched audio)", ours["FGD"] / max(rows["GT, mismatched audio"]["FGD"], 1e-12))
+    if np.isfinite(gt["BA"]):
+        report("BA / BA(GT) (no check: mismatched audio scores alike, see issue 18)", ours["BA"] / gt["BA"])
+        if "GT, mismatched audio" in rows:
+            report("BA(GT, mismatched audio) / BA(GT)", rows["GT, mismatched audio"]["BA"] / gt["BA"])
+    report("Div / Div(GT) (no check: every source but the mean pose lies within 20 %)", ours["Div"] / gt["Div"])
     if long is not None:
-        check("long audio: |frames - round(30 s)| <= 1", abs(long["frames"] - long["expected_frames"]), 1,
-              higher_is_better=False)
-        check("long audio: max seam jump / p99 inside jump <= 1",
-              long["max_seam_jump_m"] / long["p99_inside_jump_m"], 1.0, higher_is_better=False)
-        if "ground_truth" in long:
-            g = long["ground_truth"]
-            checks["same check on the ground truth (reported)"] = {
-                "value": g["max_seam_jump_m"] / g["p99_inside_jump_m"], "threshold": None, "pass": None}
+        one, chosen = long.get("candidates_1"), long.get("candidates_4")
+        if one is not None and "ground_truth" in long:
+            check("long audio, 1 candidate per window: seam ratio <= the ground truth's on the same takes",
+                  _ratio(one), _ratio(long["ground_truth"]), higher_is_better=False)
+        if chosen is not None:
+            report("long audio, 4 candidates chosen on this statistic: seam ratio", _ratio(chosen))
         if "every_take" in long:
-            for name, v in (("ours", long["every_take"]), ("ground truth", long["every_take"]["ground_truth"])):
-                checks[f"every take whole, {name}: share of seam jumps above p99 inside (reported)"] = {
-                    "value": v["seam_share_above_p99"], "threshold": None, "pass": None}
+            every = long["every_take"]
+            check(f"every take whole, {every.get('seam_candidates', 1)} candidate: seam ratio <= the ground truth's",
+                  _ratio(every), _ratio(every["ground_truth"]), higher_is_better=False)
+            for name, v in (("ours", every), ("ground truth", every["ground_truth"])):
+                report(f"every take whole, {name}: share of seam jumps above p99 inside", v["seam_share_above_p99"])
     return checks
 
 
@@ -267,6 +290,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
             targets = edit_targets(windows.emotion, seed, known)
             edited = generate_from_conditions(gesture, emotion_label_edit(gesture, conds, targets), seeds)
             sources[f"{name}, emotion edit"] = (edited, targets)
+            sources[f"{name}, unedited, against the edit targets"] = (sources[name], targets)  # the control
     ev = GestureEvaluator(cache, split, load_model(extractor_run, "extractor"))
     table = evaluate_gesture(cache_dir, extractor_run, sources, out_dir, split, seed=seed, overwrite=overwrite,
                              evaluator=ev, models=parts)
@@ -291,7 +315,8 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         "steps": {k: g.extra.get("step") for k, g in loaded.items()},
         "variants": {k: g.config.variant for k, g in loaded.items()},
         "table": table, "prior_reconstruction": recon, "long_audio": long, "emotion_auto_trust": auto_trust,
-        "checks": gesture_checks(table["rows"], main, ablations, edit_row, recon, long),
+        "checks": gesture_checks(table["rows"], main, ablations, edit_row, recon, long,
+                                 table["rows"][f"{edit_model}, unedited, against the edit targets"]["GA"]),
     }
     write_text_atomic(json_path, json.dumps(result, indent=1))
     write_text_atomic(md_path, gesture_models_markdown(result))
@@ -312,12 +337,19 @@ def gesture_models_markdown(r: dict) -> str:
         la = r["long_audio"]
         emotions = f" ({', '.join(la['emotions'])}: a window across a take boundary mixes two)" if "emotions" in la else ""
         lines += ["", "## Long audio", "",
-                  f"{la['seconds']:.1f} s of the split's takes back to back{emotions} -> {la['frames']} frames "
-                  f"(expected {la['expected_frames']}); {la['windows']} windows every {la['hop_seconds']} s. "
-                  f"Largest frame-to-frame joint jump at the seams {la['max_seam_jump_m'] * 1000:.1f} mm "
-                  f"({la['seam_jumps']} jumps) vs the 99th percentile inside windows "
-                  f"{la['p99_inside_jump_m'] * 1000:.1f} mm ({la['inside_jumps']} jumps); "
-                  f"{100 * la['seam_share_above_p99']:.1f} % of the seam jumps are above that percentile."]
+                  f"{la['seconds']:.1f} s of the split's takes back to back{emotions} (expected "
+                  f"{la['expected_frames']} frames), windows every {la['hop_seconds']} s; largest frame-to-frame "
+                  "joint jump at the seams against the 99th percentile inside windows. With 4 candidates the kept "
+                  "draws are chosen to make the largest seam jump small, so that row is selected on the statistic "
+                  "it reports; with 1 candidate nothing is selected, like the ground truth.", "",
+                  "| generation | frames | windows | max seam jump (mm) | p99 inside (mm) | ratio | share above p99 |",
+                  "|---|---|---|---|---|---|---|"]
+        for k in SEAM_CANDIDATES:
+            v = la.get(f"candidates_{k}")
+            if v is not None:
+                lines.append(f"| ours, {k} candidate{'s' if k > 1 else ''} per window | {v['frames']} | {v['windows']} | "
+                             f"{v['max_seam_jump_m'] * 1000:.1f} | {v['p99_inside_jump_m'] * 1000:.1f} | "
+                             f"{_ratio(v):.2f} | {100 * v['seam_share_above_p99']:.1f} % |")
         if "ground_truth" in la:
             g = la["ground_truth"]
             lines += ["", f"The same check on the ground truth of those {g['takes']} takes, each cut into the same "
@@ -326,7 +358,8 @@ def gesture_models_markdown(r: dict) -> str:
                       f"mm: ratio {g['max_seam_jump_m'] / g['p99_inside_jump_m']:.2f}; "
                       f"{100 * g['seam_share_above_p99']:.1f} % above the percentile."]
         if "every_take" in la:
-            lines += ["", "Every take of the split generated whole (each its own audio; pooled jumps):", "",
+            lines += ["", f"Every take of the split generated whole (each its own audio; pooled jumps; ours with "
+                      f"{la['every_take'].get('seam_candidates', 4)} candidate per window, unselected):", "",
                       "| motion | takes | seam jumps | max seam jump (mm) | p99 inside (mm) | ratio | share above p99 |",
                       "|---|---|---|---|---|---|---|"]
             for name, v in (("ours", la["every_take"]), ("ground truth", la["every_take"]["ground_truth"])):

@@ -26,6 +26,38 @@ from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_emotion", "XSty": "cross_style"}
+ACCURACY_BAR = 0.9  # EA and SA (issue 3)
+NEAR_CHANCE = 0.25  # a probe of the other factor "near chance": within this share of the way from chance to 1
+CONTENT_USE_BAR = 1.05  # swapping the content latent must raise the reconstruction error by at least 5 %
+
+
+def speech_checks(r: dict) -> dict:
+    """The speech model's thresholds as ``{name: {value, threshold, pass}}`` (pure function of a report).
+
+    Each can fail for a bad model: an untrained model fails EA/SA; adversaries that leave the other
+    factor readable fail the probe rows; a decoder that ignores the content latent fails content use.
+    XCon/XEmo/XSty against Self are reported only: with such a decoder they equal Self for any model.
+    """
+    checks: dict = {}
+
+    def check(name: str, value: float, threshold: float, higher_is_better: bool = True) -> None:
+        ok = value >= threshold if higher_is_better else value <= threshold
+        checks[name] = {"value": float(value), "threshold": float(threshold), "pass": bool(ok)}
+
+    check(f"EA >= {ACCURACY_BAR}", r["EA"], ACCURACY_BAR)
+    check(f"SA >= {ACCURACY_BAR}", r["SA"], ACCURACY_BAR)
+    probes, chance = r["linear_probes"], r["chance"]
+    for target, latent in (("emotion", "style"), ("speaker", "emotion")):
+        bar = chance[target] + NEAR_CHANCE * (1.0 - chance[target])
+        check(f"{target} read from the {latent} latent: near chance ({chance[target]:.3f})",
+              probes[f"{target}_from_{latent}"], bar, higher_is_better=False)
+    use = r["content_use"]
+    check("content use: L1 with the content latent shuffled / own", use["content_shuffled"] / use["self"],
+          CONTENT_USE_BAR)
+    for col, rel in r["reconstruction_relative_to_self"].items():
+        if col != "Self" and rel is not None:
+            checks[f"{col} / Self (reported)"] = {"value": float(rel), "threshold": None, "pass": None}
+    return checks
 
 
 @torch.no_grad()
@@ -111,7 +143,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
             if p.exists():
                 raise OutputExistsError(p)
     encoder = SpeechLatentEncoder.from_run(run)
-    use = split_use(split, {"speech": encoder.loaded})
+    split_info = split_use(split, {"speech": encoder.loaded})
     cache = open_cache(cache_dir)
     test = cache.split(split)
     enc = encoder.encode_split(cache, split)
@@ -135,12 +167,12 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
         probes[f"speaker_from_{latent}"] = linear_probe_accuracy(x_tr, train.speaker_id[sub], x_te, test.speaker_id)
 
     # quadruples of held-out texts only: their second text from another split no part trained on
-    unseen = [s for s in cache.splits if s != split and s not in use["trained_on"]["speech"]]
+    unseen = [s for s in cache.splits if s != split and s not in split_info["trained_on"]["speech"]]
     recon = (reconstruction_errors(encoder, test, cache.split(unseen[0]), num_quadruples, seed) if unseen
              else dict.fromkeys(RECON_COLUMNS))
     use = content_use(encoder, test, seed)
     result = {
-        "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test), "split_use": use,
+        "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test), "split_use": split_info,
         "step": encoder.loaded.extra.get("step"),
         "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"],
         "SA": spk_rep["accuracy"], "SF1": spk_rep["macro_f1"], "speaker_windows": int(known.sum()),
@@ -150,6 +182,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
         "reconstruction_partner_split": unseen[0] if unseen else None,
         "linear_probes": probes,
         "content_use": use,
+        "chance": {"emotion": _majority_share(test.emotion), "speaker": _majority_share(test.speaker_id)},
         "constants": {"num_quadruples": num_quadruples, "seed": seed, "probe_train_windows": int(len(sub)),
                       "probe": "standardised multinomial logistic regression, C=1"},
         "seconds": round(time.monotonic() - t0, 1),
@@ -160,6 +193,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     save_confusion_matrix(spk_rep["confusion"], [str(s) for s in encoder.speakers],
                           out_dir / f"{stem}_speaker_confusion.png", title=f"speaker ({split}), SA {result['SA']:.3f}",
                           overwrite=overwrite)
+    result["checks"] = speech_checks(result)
     write_text_atomic(outputs[0], json.dumps(result, indent=1, default=_jsonable))
     write_text_atomic(outputs[1], speech_markdown(result))
     return result
@@ -191,8 +225,20 @@ def speech_markdown(r: dict) -> str:
     ]
     for latent in ("content", "emotion", "style"):
         lines.append(f"| {latent} | {pr[f'emotion_from_{latent}']:.3f} | {pr[f'speaker_from_{latent}']:.3f} |")
+    if "checks" in r:
+        lines += ["", "## Checks", "", "| check | value | threshold | pass |", "|---|---|---|---|"]
+        for name, c in r["checks"].items():
+            thr = "-" if c["threshold"] is None else f"{c['threshold']:.3f}"
+            ok = "-" if c["pass"] is None else ("yes" if c["pass"] else "**no**")
+            lines.append(f"| {name} | {c['value']:.3f} | {thr} | {ok} |")
     lines += ["", f"Constants: {json.dumps(r['constants'])}", ""]
     return "\n".join(lines)
+
+
+def _majority_share(labels: np.ndarray) -> float:
+    """Accuracy of always answering the most frequent label (chance for a classifier)."""
+    _, counts = np.unique(np.asarray(labels), return_counts=True)
+    return float(counts.max() / counts.sum())
 
 
 def _num(v: float | None, digits: int) -> str:
