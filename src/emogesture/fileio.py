@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from os import PathLike
 from pathlib import Path
 
-from emogesture.errors import EmogestureError, OutputExistsError
+from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
 
 
 def check_output(path: str | PathLike[str], overwrite: bool = False) -> Path:
@@ -60,3 +60,26 @@ def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterato
         raise EmogestureError(f"{path}: cannot write ({err.strerror or err})") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def read_json(path: str | PathLike[str], what: str = "JSON file") -> dict:
+    """A JSON object from ``path``; a missing, unreadable, corrupt or non-object file is one
+    :class:`InputFileError` naming the file (``what`` says what it should have been)."""
+    import json
+
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputFileError(path, f"{what} not found") from None
+    except UnicodeDecodeError:
+        raise InputFileError(path, f"not a readable {what} (not UTF-8 text)") from None
+    except OSError as err:
+        raise InputFileError(path, f"cannot read the {what} ({err.strerror or err})") from None
+    try:
+        blob = json.loads(text)
+    except ValueError as err:
+        raise InputFileError(path, f"corrupt {what}: not valid JSON ({err})") from None
+    if not isinstance(blob, dict):
+        raise InputFileError(path, f"corrupt {what}: expected a JSON object")
+    return blob

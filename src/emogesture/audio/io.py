@@ -12,9 +12,9 @@ Every failure is an :class:`~emogesture.errors.InputFileError` whose one-line me
 from __future__ import annotations
 
 import json
-import math
 import shutil
 import subprocess
+from fractions import Fraction
 from os import PathLike
 from pathlib import Path
 
@@ -63,6 +63,18 @@ def _check_wav_length(path: Path) -> None:
         return  # reading proper reports it
 
 
+SAMPLE_RATE_RANGE = (1000, 768000)  # Hz: what a speech recording's header may claim
+MAX_RESAMPLE_FACTOR = 1000  # polyphase up/down factors above this use the nearest ratio within it
+
+
+def _run_tool(path: Path, cmd: list[str]) -> subprocess.CompletedProcess:
+    """Run ffmpeg/ffprobe for ``path``; a binary that cannot be started is a one-line error."""
+    try:
+        return subprocess.run(cmd, capture_output=True, stdin=subprocess.DEVNULL, check=False)
+    except OSError as err:
+        raise InputFileError(path, f"cannot decode audio: {cmd[0]} cannot be run ({err.strerror or err})") from None
+
+
 def _read_soundfile(path: Path) -> tuple[np.ndarray, int]:
     data, sr = sf.read(str(path), dtype="float32", always_2d=True)
     return data, int(sr)
@@ -76,11 +88,8 @@ def _read_ffmpeg(path: Path, soundfile_error: str) -> tuple[np.ndarray, int]:
             "ffmpeg is not installed to try other formats"
         )
     url = f"file:{path}"  # 'file:' so names starting with '-' or holding ':' are taken literally
-    probe = subprocess.run(
-        [ffprobe, "-v", "error", "-select_streams", "a:0", "-show_entries", "stream=sample_rate,channels",
-         "-of", "json", url],
-        capture_output=True, stdin=subprocess.DEVNULL, check=False,
-    )
+    probe = _run_tool(path, [ffprobe, "-v", "error", "-select_streams", "a:0", "-show_entries",
+                             "stream=sample_rate,channels", "-of", "json", url])
     streams = []
     if probe.returncode == 0:
         try:
@@ -101,11 +110,9 @@ def _read_ffmpeg(path: Path, soundfile_error: str) -> tuple[np.ndarray, int]:
         raise InputFileError(path, "cannot decode audio: ffprobe reports no sample rate / channel count") from None
     if sr <= 0 or channels <= 0:
         raise InputFileError(path, f"cannot decode audio: bad stream parameters ({sr} Hz, {channels} channels)")
-    dec = subprocess.run(
-        [ffmpeg, "-nostdin", "-v", "error", "-i", url, "-map", "0:a:0", "-vn", "-f", "f32le",
-         "-acodec", "pcm_f32le", "-ac", str(channels), "-ar", str(sr), "pipe:1"],
-        capture_output=True, stdin=subprocess.DEVNULL, check=False,
-    )
+    _check_sample_rate(path, sr)
+    dec = _run_tool(path, [ffmpeg, "-nostdin", "-v", "error", "-i", url, "-map", "0:a:0", "-vn", "-f", "f32le",
+                           "-acodec", "pcm_f32le", "-ac", str(channels), "-ar", str(sr), "pipe:1"])
     if dec.returncode != 0:
         detail = _one_line(dec.stderr.decode("utf-8", "replace"), strip_prefix=url)
         raise InputFileError(path, f"cannot decode audio with ffmpeg ({detail})")
@@ -114,15 +121,28 @@ def _read_ffmpeg(path: Path, soundfile_error: str) -> tuple[np.ndarray, int]:
     return data, sr
 
 
+def _check_sample_rate(path: Path, sr: int) -> None:
+    low, high = SAMPLE_RATE_RANGE
+    if not low <= sr <= high:
+        raise InputFileError(path, f"its header claims a sample rate of {sr} Hz, outside {low}-{high} Hz "
+                             "(a damaged or mislabelled file)")
+
+
 def resample(waveform: np.ndarray, orig_sr: int, target_sr: int) -> np.ndarray:
-    """Polyphase resampling along the last axis with the exact ratio ``target/gcd : orig/gcd`` (float64 out)."""
+    """Polyphase resampling along the last axis (float64 out), with the exact ratio ``target/gcd :
+    orig/gcd`` when both factors are at most :data:`MAX_RESAMPLE_FACTOR`, else the nearest ratio within
+    it (e.g. 44101 Hz -> 16000 Hz: a duration error below 1e-6 instead of a 16000-tap-per-phase filter)."""
     x = np.asarray(waveform, dtype=np.float64)
     if orig_sr == target_sr:
         return x
-    g = math.gcd(int(orig_sr), int(target_sr))
+    ratio = Fraction(int(target_sr), int(orig_sr))
+    if max(ratio.numerator, ratio.denominator) > MAX_RESAMPLE_FACTOR:
+        ratio = ratio.limit_denominator(MAX_RESAMPLE_FACTOR)
+        while ratio.numerator > MAX_RESAMPLE_FACTOR:  # upsampling by more than the bound: coarser ratio
+            ratio = Fraction(int(target_sr), int(orig_sr)).limit_denominator(max(1, ratio.denominator // 2))
     from scipy.signal import resample_poly  # imported here: scipy.signal costs ~1 s at start-up
 
-    return resample_poly(x, int(target_sr) // g, int(orig_sr) // g, axis=-1)
+    return resample_poly(x, ratio.numerator, ratio.denominator, axis=-1)
 
 
 def load_audio(
@@ -159,6 +179,7 @@ def load_audio(
         data, sr = _read_soundfile(p)
     except Exception as err:  # libsndfile's errors are RuntimeError / TypeError / ValueError subclasses
         data, sr = _read_ffmpeg(p, _one_line(str(err)))
+    _check_sample_rate(p, sr)
     if data.shape[0] == 0 or data.shape[1] == 0:
         raise InputFileError(p, "contains no audio samples")
     if not np.isfinite(data).all():

@@ -16,7 +16,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import csv
-import json
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from emogesture.errors import InputFileError
+from emogesture.fileio import read_json
 
 CACHE_VERSION = 1
 WINDOW_COLUMNS = ("take", "speaker_id", "emotion", "text", "start_s")
@@ -101,11 +101,8 @@ def open_cache(root: str | PathLike[str]) -> WindowsCache:
     manifest_path = root / "manifest.json"
     if not manifest_path.is_file():
         raise InputFileError(root, "not a complete windows cache (no manifest.json); run `emogesture prepare` first")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-        stats = json.loads((root / "stats.json").read_text())
-    except (OSError, ValueError) as e:
-        raise InputFileError(root, f"unreadable cache metadata ({e})")
+    manifest = read_json(manifest_path, "cache manifest")
+    stats = read_json(root / "stats.json", "cache statistics")
     if manifest.get("cache_version") != CACHE_VERSION:
         raise InputFileError(
             root, f"cache version {manifest.get('cache_version')} is not {CACHE_VERSION}; re-run `emogesture prepare`"

@@ -39,6 +39,7 @@ from emogesture.audio import FbankConfig, kaldi_fbank, load_audio
 from emogesture.data.beat import SPLITS, actor_split, parse_take_name, read_sem, read_split_csv, sem_frame_scores
 from emogesture.data.cache import CACHE_VERSION, WINDOW_COLUMNS
 from emogesture.errors import EmogestureError, InputFileError
+from emogesture.fileio import read_json
 from emogesture.motion import MotionFeatureSpec, load_smplx_npz, poses_to_features, write_npz_atomic
 
 FBANK_RATE = 100  # fbank frames per second (10 ms shift)
@@ -277,7 +278,10 @@ def prepare(
     cfg_path = out / "prepare_config.json"
     cfg = {"digest": config.digest(), "config": config.to_dict(), "root": str(root.resolve())}
     if cfg_path.is_file():
-        old = json.loads(cfg_path.read_text())
+        try:
+            old = read_json(cfg_path, "cache settings file")
+        except InputFileError as err:
+            raise EmogestureError(f"{err}; delete the cache folder or use another --out") from None
         if old.get("digest") != cfg["digest"]:
             raise EmogestureError(
                 f"{out}: this cache was started with other settings; use another --out or delete it"
@@ -293,7 +297,11 @@ def prepare(
                                       sort_keys=True).encode()).hexdigest()
     manifest_path = out / "manifest.json"
     if manifest_path.is_file():
-        manifest = json.loads(manifest_path.read_text())
+        try:
+            manifest = read_json(manifest_path, "cache manifest")
+        except InputFileError as err:  # derived data: assembled again from the prepared takes
+            print(f"note: {err}; assembling it again", file=sys.stderr)
+            manifest = {}
         if (manifest.get("takes") == takes and manifest.get("digest") == cfg["digest"]
                 and manifest.get("sources") == sources):
             return PrepareResult(out, len(takes), 0, manifest["windows"], skipped, False, time.monotonic() - t0)

@@ -284,7 +284,10 @@ def save_mp4(seq: SMPLXSequence, path: str | PathLike[str], *, audio: tuple[np.n
             cmd += ["-i", str(wav), "-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "96k"]
         cmd += ["-c:v", "libx264", "-preset", "superfast", "-crf", "20", "-pix_fmt", "yuv420p",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
-        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        try:
+            proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        except OSError as err:
+            raise EmogestureError(f"{ffmpeg}: ffmpeg cannot be run ({err.strerror or err})") from None
         try:
             frames = tqdm(renderer.frames(seq, overlay=overlay, workers=min(os.cpu_count() or 1, 2)),
                           total=seq.num_frames, desc=f"rendering {Path(path).name}", unit="frame",

@@ -24,6 +24,7 @@ from lightning.pytorch.callbacks import Callback, ModelCheckpoint, TQDMProgressB
 from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
 
 from emogesture.errors import EmogestureError
+from emogesture.fileio import read_json
 
 
 class AtomicCheckpointIO(TorchCheckpointIO):
@@ -148,7 +149,7 @@ def check_run_dir(run_dir: Path, settings_blob: dict, overwrite: bool = False) -
     """
     run_json = run_dir / "run.json"
     if run_json.is_file():
-        old = json.loads(run_json.read_text())
+        old = read_json(run_json, "run settings file")
         if old != settings_blob and not overwrite:
             changed = sorted(k for k in set(old) | set(settings_blob) if old.get(k) != settings_blob.get(k))
             raise EmogestureError(
