@@ -192,7 +192,7 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
                    long: dict | None, edit_control: float | None = None) -> dict:
     """The experiment's thresholds as ``{name: {value, threshold, pass}}`` (pure function).
 
-    Every row with a threshold can fail for a bad model (``tests/test_gesture_checks.py`` feeds bad
+    Every row with a threshold can fail for a bad model (``tests/test_report_checks.py`` feeds bad
     rows); numbers that cannot (BA, which mismatched audio matches; Div, which any real-looking motion
     matches; the chooser-selected seam ratio) are reported without a threshold. ``edit_control``: GA of
     the unedited output against the edit targets (what an edit that changes nothing scores).

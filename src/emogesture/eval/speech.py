@@ -166,8 +166,10 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
         probes[f"emotion_from_{latent}"] = linear_probe_accuracy(x_tr, train.emotion[sub], x_te, test.emotion)
         probes[f"speaker_from_{latent}"] = linear_probe_accuracy(x_tr, train.speaker_id[sub], x_te, test.speaker_id)
 
-    # quadruples of held-out texts only: their second text from another split no part trained on
-    unseen = [s for s in cache.splits if s != split and s not in split_info["trained_on"]["speech"]]
+    # quadruples of held-out texts only: their second text from another split no part trained on (and
+    # never from test when another split is scored: test is read only when it is the split scored)
+    unseen = [s for s in cache.splits
+              if s not in (split, "test") and s not in split_info["trained_on"]["speech"]]
     recon = (reconstruction_errors(encoder, test, cache.split(unseen[0]), num_quadruples, seed) if unseen
              else dict.fromkeys(RECON_COLUMNS))
     use = content_use(encoder, test, seed)
