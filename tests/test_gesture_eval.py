@@ -55,6 +55,10 @@ def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
     assert max(shifted["FGD"], mismatched["FGD"]) < rows["mean pose"]["FGD"]
     assert rows["GT"]["SRGR"] > shifted["SRGR"] > mismatched["SRGR"]
     assert r["split_use"]["held_out"] and r["split_use"]["trained_on"] == {"extractor": ["train"]}
+    stats = r["motion_stats"]  # motion-stats of every source: the foreign copy moves like the ground truth
+    assert stats["other"]["wrist_speed_mean"] == pytest.approx(stats["GT"]["wrist_speed_mean"], rel=1e-4)
+    assert stats["mean pose"]["wrist_speed_mean"] == 0.0 < stats["GT"]["wrist_speed_mean"]
+    assert "## Motion statistics" in (tmp_path / "report" / "gesture_test.md").read_text()
     md = (tmp_path / "report" / "gesture_test.md").read_text()
     assert "| other |" in md and "beat_sigma_s" in md
     assert (tmp_path / "report" / "gesture_test_other_emotion_confusion.png").read_bytes()[:4] == b"\x89PNG"

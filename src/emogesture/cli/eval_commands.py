@@ -37,6 +37,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
     p.set_defaults(func=run_evaluate_gesture)
 
+    p = sub.add_parser("motion-stats", help="how lively motion is: joint angular speed, hand speed and posture",
+                       description="Statistics of SMPL-X motion (BEAT2 npz): per-joint angular speed, wrist speed "
+                       "(mean, 95th percentile), and the share of frames with a wrist below the pelvis, an elbow "
+                       "opened beyond 150 degrees, a wrist slower than 0.05 m/s. One column per SOURCE.")
+    p.add_argument("sources", nargs="+", metavar="[NAME=]SOURCE",
+                   help="a BEAT2 root, a folder of .npz files or one .npz file (loose .npz files form one column)")
+    p.add_argument("--every", type=int, default=1, help="use every N-th file of each source (default 1)")
+    p.add_argument("--json", type=Path, help="also write the numbers as JSON here")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --json file")
+    p.set_defaults(func=run_motion_stats)
+
     info = sub.add_parser("model-info", help="the bundled model, or parameter counts and FLOPs of a preset",
                           description="Without MODEL: the bundled model (files, checksums, training, numbers). "
                           "With MODEL: parameter counts and FLOPs of a preset.")
@@ -99,6 +110,41 @@ def _named_paths(items: list[str], flag: str, shape: str) -> dict[str, Path]:
             raise EmogestureError(f"{flag}: the name {name!r} is given twice")
         out[name] = Path(path)
     return out
+
+
+def run_motion_stats(args: argparse.Namespace) -> int:
+    import json
+
+    from emogesture.eval.motion_stats import file_statistics, motion_stats_markdown, npz_files
+    from emogesture.fileio import atomic_output, check_output
+
+    if args.every < 1:
+        raise EmogestureError(f"--every {args.every}: must be at least 1")
+    if args.json is not None:
+        check_output(args.json, args.overwrite)
+    sources: dict[str, list[Path]] = {}
+    loose: list[Path] = []
+    for item in args.sources:
+        name, sep, path = item.partition("=")
+        if not sep:
+            name, path = "", item
+        files = npz_files(path)
+        if not name and Path(path).is_file():
+            loose += files
+            continue
+        name = name or Path(path).name
+        if name in sources:
+            raise EmogestureError(f"{item!r}: the name {name!r} is given twice; name sources with NAME=SOURCE")
+        sources[name] = files
+    if loose:
+        sources["npz files"] = loose
+    results = {name: file_statistics(files, args.every, progress=True) for name, files in sources.items()}
+    print(motion_stats_markdown(results), end="")
+    if args.json is not None:
+        with atomic_output(args.json, args.overwrite) as tmp:
+            tmp.write_text(json.dumps(results, indent=1))
+        print(f"wrote {args.json}")
+    return 0
 
 
 def run_model_info_bundled(args: argparse.Namespace) -> int:

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import detect_onsets, load_audio
+from emogesture.eval.motion_stats import motion_statistics, motion_stats_markdown
 from emogesture.eval.report import split_use_line
 from emogesture.checkpoints import LoadedModel, load_model, split_use, write_text_atomic
 from emogesture.config import from_dict
@@ -27,7 +28,7 @@ from emogesture.eval.metrics import (
     METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk, wrist_speed,
 )
 from emogesture.eval.plots import save_confusion_matrix
-from emogesture.motion import MotionFeatureSpec, SkeletonBody
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 
 COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed")
 
@@ -106,6 +107,13 @@ class GestureEvaluator:
         }
         return row, rep["confusion"]
 
+    @torch.no_grad()
+    def motion_stats(self, motion: np.ndarray) -> dict:
+        """:func:`~emogesture.eval.motion_stats.motion_statistics` of a source's windows ``[W, T, D]``."""
+        poses, _ = features_to_poses(torch.from_numpy(np.asarray(motion, np.float32)), self.spec)
+        joints = self.body.forward_features(torch.from_numpy(np.asarray(motion, np.float32)), self.spec)
+        return motion_statistics([(p, j, float(self.fps)) for p, j in zip(poses.numpy(), joints.numpy())])
+
     def split_half_fgd(self, seed: int = 0) -> float:
         """FGD between the ground truth of two disjoint halves of the takes: the noise floor of FGD."""
         takes = sorted(set(self.windows.takes))
@@ -125,8 +133,11 @@ def gesture_markdown(result: dict) -> str:
               "(the noise floor of FGD on this split).",
               "SRGR, BA, GA, Div: higher is better (Div: closer to GT); FGD, Jerk: lower is better (Jerk: m/s³, "
               "closer to GT). Speed: mean wrist speed, m/s (closer to GT).", "",
-              f"Extractor: {result['extractor']}", "",
-              "Constants: " + json.dumps(result["constants"]), ""]
+              f"Extractor: {result['extractor']}", ""]
+    if result.get("motion_stats"):
+        lines += ["## Motion statistics (`emogesture motion-stats`: per-window, pooled)", "",
+                  motion_stats_markdown(result["motion_stats"]).rstrip(), ""]
+    lines += ["Constants: " + json.dumps(result["constants"]), ""]
     return "\n".join(lines)
 
 
@@ -161,10 +172,12 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         todo["GT, shifted 1 s"] = src.time_shifted(w, cache, 1.0)
     for name, value in sources.items():
         todo[name] = src.npz_folder(value, w, ev.spec) if isinstance(value, (str, Path)) else value
-    rows, out_dir_made = {}, False
+    rows, stats, out_dir_made = {}, {}, False
     for name, value in todo.items():
         motion, labels = value if isinstance(value, tuple) else (value, None)
         rows[name], cm = ev.score(motion, labels, seed)
+        if labels is None:  # the same motion scored against other labels has the same statistics
+            stats[name] = ev.motion_stats(motion)
         if not out_dir_made:
             out_dir.mkdir(parents=True, exist_ok=True)
             out_dir_made = True
@@ -173,7 +186,7 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
                               title=f"{name}: GA {rows[name]['GA']:.3f}", overwrite=True)
     result = {
         "split": split, "windows": len(w), "cache": str(cache_dir), "extractor": str(extractor_run), "split_use": use,
-        "rows": rows, "gt_split_half_fgd": ev.split_half_fgd(seed),
+        "rows": rows, "motion_stats": stats, "gt_split_half_fgd": ev.split_half_fgd(seed),
         "audio_onsets": ev.onsets is not None,
         "constants": {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in METRIC_CONSTANTS.items()},
                       "div_seed": seed, "seed": seed, "body": "licence-free mannequin-x skeleton"},
