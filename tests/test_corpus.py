@@ -317,3 +317,32 @@ def test_motion_beats_follow_the_audio_onsets(measured):
     assert own > shifted and share >= 0.65 and p < 1e-4
     own, shifted, share, p = report[0.1]
     assert own - shifted >= 0.03 and share >= 0.8 and p < 1e-6
+
+
+# Real conversational motion capture (BEAT, two speakers; issue 17's table): mean angular speed of each joint's
+# local rotation, rad per 30-fps frame, (speaker 2, speaker 1).
+REAL_ANGULAR_SPEED = {
+    "spine1": (0.0072, 0.0044), "spine2": (0.0062, 0.0034), "spine3": (0.0037, 0.0024), "neck": (0.0105, 0.0051),
+    "head": (0.0099, 0.0061), "left_collar": (0.0147, 0.0056), "right_collar": (0.0137, 0.0047),
+    "left_shoulder": (0.0238, 0.0103), "right_shoulder": (0.0197, 0.0110), "left_elbow": (0.0454, 0.0099),
+    "right_elbow": (0.0487, 0.0203), "left_wrist": (0.0378, 0.0230), "right_wrist": (0.0408, 0.0324),
+}
+
+
+@pytest.mark.slow
+def test_motion_moves_like_real_motion(corpus):
+    """Every upper-body joint turns within [0.5 × the slower, 1.5 × the faster] real speaker; hand speed and
+    posture within issue 17's ranges (wrists pooled)."""
+    from emogesture.eval.motion_stats import file_statistics
+
+    root, _ = corpus
+    r = file_statistics(sorted((root / "smplxflame_30").glob("*.npz")))
+    print("\nmotion statistics:", {k: round(v, 4) for k, v in r["angular_speed"].items()},
+          {k: round(r[k], 3) for k in ("wrist_speed_mean", "wrist_below_pelvis_share", "elbow_open_share",
+                                        "wrist_still_share")})
+    for joint, (a, b) in REAL_ANGULAR_SPEED.items():
+        assert 0.5 * min(a, b) <= r["angular_speed"][joint] <= 1.5 * max(a, b), joint
+    assert 0.25 <= r["wrist_speed_mean"] <= 0.6
+    assert 0.25 <= r["wrist_below_pelvis_share"] <= 0.6
+    assert 0.05 <= r["elbow_open_share"] <= 0.25
+    assert r["wrist_still_share"] <= 0.10

@@ -39,7 +39,7 @@ from emogesture.data.synthetic.takes import (
 from emogesture.data.synthetic.text import make_text
 from emogesture.errors import ConfigError, EmogestureError
 
-CORPUS_VERSION = 2  # 2: the hanging arm turns inwards at most MAX_ADDUCTION (motion of some takes changed)
+CORPUS_VERSION = 3  # 2: the hanging arm turns inwards at most MAX_ADDUCTION; 3: the lively generator (issue 17)
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"

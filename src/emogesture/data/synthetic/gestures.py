@@ -3,14 +3,22 @@
 The motion is built from named control channels (radians, per frame) and mapped onto SMPL-X
 local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
 
-* posture = rest pose (arms down: shoulders ±1.25 rad about Z, elbows bent forward) + emotion
+* posture = rest pose (arms hanging: shoulders ±1.25 rad about Z, elbows slightly bent) + emotion
   posture + speaker rest offsets + per-take jitter, drifting slowly;
-* a "gesture space" lift of the hands while speaking (smoothed voice activity);
+* a "gesture space" lift of the hands while speaking (smoothed voice activity), back to the hanging
+  rest in pauses;
 * strokes at detected audio onsets: an asymmetric Gaussian rise-apex-return of shoulder, elbow,
-  wrist, finger and head-nod channels, apex on the onset, so the arms' speed minima fall on
-  onsets; amplitude, width and rate from emotion × speaker × jitter, hands from the speaker's
-  handedness;
-* low-pass noise, breathing sway, a tremor for fear, the jaw opening with the speech energy.
+  wrist, finger, collar, torso-twist and head-nod channels, apex on the onset, so the arms' speed
+  minima fall on onsets; most strokes bend the elbow (beats), some raise the arm and open the elbow
+  (``P_REACH``: an arm reaching out); amplitude, width and rate from emotion × speaker × jitter, hands
+  from the speaker's handedness;
+* an idle layer that never stops (``IDLE``): band-limited sway, twist and lean of each spine joint,
+  head and neck movement, collar movement, and arm and wrist movement scaled by the take's amplitude,
+  so no joint is frozen (issue 17 measured the earlier corpus at a tenth of real torso speed);
+* breathing, a tremor for fear, the jaw opening with the speech energy.
+
+Measured with ``emogesture motion-stats`` against real conversational motion capture: see
+``experiments/README.md``.
 
 Mirror rule: the right side uses the left side's channels with the Y and Z rotation components
 negated (a reflection through the body's mid-plane). Lower-body joints stay at zero.
@@ -29,11 +37,16 @@ from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, Ta
 from emogesture.types import FPS, NUM_JOINTS
 
 ARM_DOWN = 1.25  # rad about Z that brings the T-pose arms down beside the body
-REST = dict(flex=0.12, abduct=0.0, elbow=0.5)
+REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
 MAX_ADDUCTION = 0.05  # rad the hanging arm may come closer to the body than at rest
-STROKE_WIDTH = 0.2  # s, rise half-width of a neutral stroke (return is 1.4× longer)
-STROKE_GAP = 0.7  # s, minimum spacing of neutral strokes
-STROKE_AMPLITUDE = 0.45  # rad scale of a neutral stroke
+MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
+STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
+STROKE_GAP = 0.45  # s, minimum spacing of neutral strokes
+STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
+MAX_STROKE = 1.1  # rad: the largest stroke (keeps the hands below about 4 m/s)
+P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
+# the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
+IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.06, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
 COLLAR, SHOULDER, ELBOW, WRIST = (13, 14), (16, 17), (18, 19), (20, 21)
 FINGERS = (tuple(range(25, 37)), tuple(range(40, 52)))  # without thumbs
@@ -104,12 +117,14 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     arms = [{k: np.zeros(n) for k in arm_keys} for _ in range(2)]
     for side in range(2):
         a = arms[side]
-        noise = _smooth_noise(rng, n, 0.25 * FPS, len(arm_keys)) * 0.025 * np.sqrt(amp)
+        noise = _smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
+        wrist_noise = _smooth_noise(rng, n, IDLE["wrist"][1] * FPS, 3) * IDLE["wrist"][0] * np.sqrt(amp)
+        noise[:, 3:6] += wrist_noise
         for i, k in enumerate(arm_keys):
             a[k] += noise[:, i]
-        a["flex"] += REST["flex"] + body["flex"] + 0.15 * weights[side] * lift * amp ** 0.5
+        a["flex"] += REST["flex"] + body["flex"] + 0.1 * weights[side] * lift * amp ** 0.5
         a["abduct"] += REST["abduct"] + body["abduct"] + 0.05 * weights[side] * lift * amp
-        a["elbow"] += REST["elbow"] + body["elbow"] + 0.55 * weights[side] * lift * amp ** 0.5
+        a["elbow"] += REST["elbow"] + body["elbow"] + 0.4 * weights[side] * lift * amp ** 0.5
         a["curl"] += speaker.finger_curl
         if em.tremor:
             shake = _smooth_noise(rng, n, 1.0, 3) - _smooth_noise(rng, n, 4.0, 3) * 0.5
@@ -133,19 +148,26 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     for apex in apexes:
         apex = float(apex + rng.normal(0.0, 0.03))
         s = float(np.interp(apex, onsets, strength)) if onsets.size else 1.0
-        a_k = STROKE_AMPLITUDE * amp * (0.55 + 0.45 * s) * float(np.exp(rng.normal(0.0, 0.25)))
+        a_k = min(STROKE_AMPLITUDE * amp * (0.55 + 0.45 * s) * float(np.exp(rng.normal(0.0, 0.25))), MAX_STROKE)
         w = np.where(t < apex, rise, fall)
         bump = np.exp(-0.5 * ((t - apex) / w) ** 2)
         u = rng.uniform()
         sides = (0, 1) if u < p_both else ((1 - dominant,) if u < p_both + p_weak else (dominant,))
-        direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
-                         wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
-                         curl=-rng.uniform(0.0, 0.5))
+        if rng.uniform() < P_REACH:  # reach out: the arm rises forward and the elbow opens
+            direction = dict(elbow=-rng.uniform(0.2, 0.5), flex=rng.uniform(0.6, 1.0), abduct=rng.normal(0, 0.4),
+                             wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
+                             curl=-rng.uniform(0.2, 0.6))
+        else:
+            direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
+                             wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
+                             curl=-rng.uniform(0.0, 0.5))
         for side in sides:
             for k, v in direction.items():
                 arms[side][k] += a_k * v * bump
         body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
         body["lean"] += 0.04 * a_k * bump
+        body["shrug"] += 0.08 * a_k * rng.uniform(0.3, 1.0) * bump  # the collars take part in the stroke
+        body["twist"] += 0.08 * a_k * rng.normal(0.0, 1.0) * bump
         score = float(np.clip(1.0 - np.exp(-a_k / 0.35), 0.0, 1.0))
         hand = "both" if len(sides) == 2 else ("left", "right")[sides[0]]
         strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + 2 * fall),
@@ -158,10 +180,16 @@ def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.G
     n = len(energy)
     poses = np.zeros((n, NUM_JOINTS, 3))
     poses[:, 0, 1] = 0.02 * _smooth_noise(rng, n, 2.0 * FPS)[:, 0]  # slight weight shift
-    for j in SPINE:
+    idle = {k: _smooth_noise(rng, n, sigma * FPS, 3) * a for k, (a, sigma) in IDLE.items()}
+    for k, j in enumerate(SPINE):  # sway, twist and lean that never stop, strongest low in the spine
         poses[:, j] = np.stack([body["lean"], body["twist"], body["side"]], axis=1) / 3.0
+        # (lean, twist, side): little side bend, which would carry the chest into a hanging arm
+        poses[:, j] += (_smooth_noise(rng, n, IDLE["spine"][1] * FPS, 3) * IDLE["spine"][0] * (1.0 - 0.25 * k)
+                        * np.array([1.0, 1.0, 0.3]))
     poses[:, NECK] = np.stack([0.4 * body["head_pitch"], 0.5 * body["head_turn"], 0.3 * body["head_tilt"]], 1)
     poses[:, HEAD] = np.stack([0.6 * body["head_pitch"], 0.5 * body["head_turn"], 0.7 * body["head_tilt"]], 1)
+    poses[:, NECK] += idle["neck"]
+    poses[:, HEAD] += _smooth_noise(rng, n, IDLE["neck"][1] * FPS, 3) * IDLE["neck"][0]
     jaw = np.clip(gaussian_filter1d(energy / (np.percentile(energy, 95) + 1e-9), 1.0), 0.0, 1.3)
     poses[:, JAW, 0] = 0.12 * jaw
     mirror = (np.array([1.0, 1.0, 1.0]), np.array([1.0, -1.0, -1.0]))
@@ -169,12 +197,13 @@ def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.G
         a, m = arms[side], mirror[side]
         # a lowered shoulder (negative shrug) turns the hanging arm inwards as well: together they bring
         # the arm at most MAX_ADDUCTION closer to the body than the rest pose, so the hand stays beside the hips
-        abduct = np.maximum(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0))
-        flex = np.clip(a["flex"], -0.3, 1.6)
+        abduct = np.clip(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0), MAX_ABDUCTION)
+        flex = np.clip(a["flex"], -0.3, MAX_FLEX)
         down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
         forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))
         poses[:, SHOULDER[side]] = (forward * down).as_rotvec() * m
-        poses[:, COLLAR[side]] = np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) * m
+        collar = _smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
+        poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
         poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
         poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
         curl = np.clip(a["curl"], -0.2, 1.2)
