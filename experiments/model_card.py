@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from emogesture.checkpoints import write_checksums
+from emogesture.data.synthetic.corpus import CORPUS_VERSION
 
 REBUILD = "make model   # = bash experiments/bundled_model.sh (resumes when re-run)"
 
@@ -43,6 +44,7 @@ def main(bundle: str, report: str, times: str) -> None:
         f"{r['median_voice_distance_over_threshold']:.2f} | {r['share_blended_toward_neutral']:.2f} |"
         for name, r in shift["rows"].items())
     total_mb = sum(sizes.values()) / 1e6
+    corpus_version = CORPUS_VERSION  # the corpus `bundled_model.sh` builds and trains on
     shares = [r["share_blended_toward_neutral"] for r in shift["rows"].values()]
     blended_orig, blended_lo, blended_hi = shares[0], min(shares[1:]), max(shares[1:])
     text = f"""# Model card: the bundled emogesture model
@@ -55,7 +57,7 @@ latents, and the evaluation suite's motion feature extractor M. Weights are stor
 
 ## Training data
 
-Only the project's **synthetic corpus** (`emogesture corpus`, default settings, seed 0): 8 synthetic
+Only the project's **synthetic corpus** (`emogesture corpus`, version {corpus_version}, default settings, seed 0): 8 synthetic
 speakers (voices of the flite, festival and espeak-ng speech synthesisers with per-speaker pitch and
 rate), 8 emotions with their own prosody, 32 texts, 256 takes, 118.7 minutes of speech; the motion is
 procedural upper-body gestures timed by the speech onsets, with per-emotion and per-speaker
