@@ -110,8 +110,9 @@ class GestureEvaluator:
     @torch.no_grad()
     def motion_stats(self, motion: np.ndarray) -> dict:
         """:func:`~emogesture.eval.motion_stats.motion_statistics` of a source's windows ``[W, T, D]``."""
-        poses, _ = features_to_poses(torch.from_numpy(np.asarray(motion, np.float32)), self.spec)
-        joints = self.body.forward_features(torch.from_numpy(np.asarray(motion, np.float32)), self.spec)
+        x = torch.from_numpy(np.array(motion, np.float32))  # a copy: sources may be read-only memory maps
+        poses, _ = features_to_poses(x, self.spec)
+        joints = self.body.forward_features(x, self.spec)
         return motion_statistics([(p, j, float(self.fps)) for p, j in zip(poses.numpy(), joints.numpy())])
 
     def split_half_fgd(self, seed: int = 0) -> float:
