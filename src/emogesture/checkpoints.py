@@ -11,7 +11,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from os import PathLike
@@ -26,6 +25,7 @@ from torch import nn
 from emogesture import __version__
 from emogesture.config import from_dict, to_dict
 from emogesture.errors import ConfigError, InputFileError, OutputExistsError
+from emogesture.fileio import atomic_output, fsync_dir
 
 FORMAT = "emogesture-model"
 FORMAT_VERSION = 2
@@ -77,36 +77,18 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _fsync_dir(folder: Path) -> None:
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
 def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Write through a temporary file in ``path``'s folder: written, flushed to disk, then renamed."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        fd = os.open(tmp, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-        _fsync_dir(path.parent)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write through :func:`emogesture.fileio.atomic_output` (replacing ``path``): temporary file, fsync, rename."""
+    with atomic_output(path, overwrite=True) as tmp:
+        write(tmp)
+
+
+def check_model_output(path: str | PathLike[str], overwrite: bool = False, name: str = "model") -> None:
+    """Refuse to write a model where one exists (either file of the pair), unless ``overwrite``."""
+    if not overwrite:
+        for p in model_paths(path, name):
+            if p.exists():
+                raise OutputExistsError(p)
 
 
 def write_text_atomic(path: str | PathLike[str], text: str) -> Path:
@@ -160,8 +142,7 @@ def save_model(
     """
     weights, meta_path = model_paths(path, name)
     weights.parent.mkdir(parents=True, exist_ok=True)
-    if not overwrite and (weights.exists() or meta_path.exists()):
-        raise OutputExistsError(meta_path)
+    check_model_output(path, overwrite, name)
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     if weights_dtype is not None:
         state = {k: v.to(weights_dtype) if v.is_floating_point() else v for k, v in state.items()}
@@ -189,7 +170,7 @@ def save_model(
 
 def _commit_pending(pending: Path, weights: Path) -> None:
     os.replace(pending, weights)
-    _fsync_dir(weights.parent)
+    fsync_dir(weights.parent)
 
 
 def read_meta(path: str | PathLike[str], kind: str | None = None, name: str = "model") -> dict:

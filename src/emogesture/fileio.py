@@ -27,6 +27,20 @@ def check_output(path: str | PathLike[str], overwrite: bool = False) -> Path:
     return path
 
 
+def fsync_dir(folder: str | PathLike[str]) -> None:
+    """Flush a folder's entries (a rename in it) to disk; a no-op where folders cannot be opened."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 @contextmanager
 def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterator[Path]:
     """Yield a temporary path in ``path``'s folder; when the block ends without error, the file written
@@ -54,6 +68,7 @@ def atomic_output(path: str | PathLike[str], overwrite: bool = False) -> Iterato
         if path.exists() and not overwrite:  # appeared while we were writing
             raise OutputExistsError(path)
         os.replace(tmp, path)
+        fsync_dir(path.parent)
     except OSError as err:
         if isinstance(err, OutputExistsError):
             raise

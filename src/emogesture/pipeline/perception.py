@@ -32,11 +32,11 @@ from os import PathLike
 
 import numpy as np
 
-from emogesture.checkpoints import load_model, model_paths, refuse_trained_split, save_model, trained_splits
+from emogesture.checkpoints import check_model_output, load_model, refuse_trained_split, save_model, trained_splits
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.diffusion.residual import shrunk_covariance
-from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
+from emogesture.errors import EmogestureError
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
 TRUST_QUANTILE = 0.99
@@ -230,10 +230,7 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
         raise EmogestureError(f"quantile {quantile}: must be in [0.5, 1)")
     if split in ("train", "test"):
         raise EmogestureError(f"--split {split}: calibrate on held-out windows that are not the test split (e.g. val)")
-    if not overwrite:
-        for p in model_paths(out):
-            if p.exists():
-                raise OutputExistsError(p)
+    check_model_output(out, overwrite)
     loaded = load_model(run, "speech")
     trained_on = trained_splits(loaded)
     refuse_trained_split(split, loaded, purpose="calibrate")

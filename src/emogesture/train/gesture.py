@@ -23,14 +23,14 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.checkpoints import (LoadedModel, load_model, model_paths, refuse_trained_split, save_model,
+from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
                                     trained_splits)
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps, training_target
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
-from emogesture.errors import ConfigError, OutputExistsError
+from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.pipeline.conditions import calibrate_residual, window_conditions
@@ -293,10 +293,7 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     out = Path(out)
     if scale < 0:
         raise ConfigError(f"residual scale must be ≥ 0, got {scale}")
-    if not overwrite:
-        for p in model_paths(out):
-            if p.exists():
-                raise OutputExistsError(p)
+    check_model_output(out, overwrite)
     gesture = load_model(run, "gesture")
     cache = open_cache(cache_dir)
     variant = gesture.config.variant
