@@ -98,9 +98,8 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 
 - **Real voices lie outside its training data.** It has heard eight synthetic voices only. On a
   real recording the speech model's sense of emotion is not reliable: an earlier model of the same
-  recipe heard real neutral talks mostly as surprise, happiness or contempt. The rhythm of the
-  gestures and their timing still come from the audio, but the emotion it perceives in your voice
-  may be wrong.
+  recipe heard real neutral talks mostly as surprise, happiness or contempt, so the emotion it
+  perceives in your voice may be wrong.
 - **What `generate` does about it.** It prints the emotion it perceives (majority over 10-s windows,
   with its mean probability) and writes every window's perception to `*_perception.json`. With
   `--emotion auto` (the default) it trusts a window's emotion only where the speech lies within the
@@ -122,8 +121,17 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   latent alone often looks familiar): `auto` blends {blended_lo:.0%} to {blended_hi:.0%} of the
   windows of the changed recordings toward neutral, and {blended_orig:.1%} of the unchanged ones.
 
+- **The strokes do not yet fall on the syllables.** The gestures' emotion and energy come
+  from the speech, 10 s at a time, but within a window the strokes are not timed by the speech: the
+  rhythm gain (how much better the arms' speed follows the speech's onsets than mismatched audio's)
+  is within noise of zero for this model, against 37 spreads for the corpus's own motion
+  (`experiments/README.md`, "Rhythm").
 - **Motion.** The gestures are those of a procedural corpus: upper body only (legs, fingers, face
-  stay at rest), smoother and stiffer than real people. The root does not travel.
+  stay at rest); the root does not travel. Since corpus version 3 the training motion turns at speeds within
+  the range of real conversational motion capture, joint by joint, and so does this model's output but
+  for its wrists, which turn a little slower (`emogesture motion-stats`; the tables are in
+  `experiments/README.md`). The gestures are generic beats and reaches, not the meaningful
+  (iconic, deictic) gestures people make.
 - **Speakers.** `--style-from` can only take styles like the eight it knows; another voice gives a
   style somewhere between them.
 """
