@@ -45,6 +45,10 @@ def trained(tmp_path_factory):
                                  "--out", d / variant, "--steps", 4, "--checkpoint-every", 2, "--log-every", 1, "--quiet",
                                  *SMALL), capture_output=True, text=True)
         assert out.returncode == 0, (variant, out.stderr[-2000:])
+    out = subprocess.run(cli("train", "gesture", "--data", d / "cache", "--speech", d / "speech", "--out", d / "timing",
+                             "--steps", 4, "--quiet", *SMALL, "--set", "model.denoiser.timing_tokens=10"),
+                         capture_output=True, text=True)  # issue 18: the denoiser hears the speech's timing
+    assert out.returncode == 0, out.stderr[-2000:]
     return d
 
 
@@ -68,7 +72,7 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     args = ["evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext", "--out", tmp_path / "r",
             "--long-audio", 30]
     for name, variant in (("ours", "joint"), ("disjoint", "disjoint"), ("no prior", "no_prior"),
-                          ("no audio model", "no_audio")):
+                          ("no audio model", "no_audio"), ("with timing", "timing")):
         args += ["--model", f"{name}={d / variant}"]
     out = subprocess.run(cli(*args), capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-3000:]
@@ -86,10 +90,17 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     whole = r["long_audio"]["every_take"]  # every take generated whole, next to its ground truth
     assert whole["takes"] == whole["ground_truth"]["takes"] >= 1 and whole["seam_jumps"] > 0
     assert len(r["long_audio"]["emotions"]) == len(r["long_audio"]["takes"])
-    assert set(r["prior_reconstruction"]) == {"mean pose", "ours", "disjoint", "no audio model"}
+    assert set(r["prior_reconstruction"]) == {"mean pose", "ours", "disjoint", "no audio model", "with timing"}
     assert "FGD / FGD(no prior) < 1" in r["checks"] and "GA / GA(GT) >= 0.7" in r["checks"]
     md = (tmp_path / "r" / "gesture_models_test.md").read_text()
     assert "## Checks" in md and "| ours, emotion edit |" in md and "generated whole" in md
+    # the rhythm gain of every source, the timing model's control with another window's stream
+    assert "with timing, timing stream of another window" in rows
+    assert rows["mean pose"]["Rhythm"] == 0.0 and all(np.isfinite(row["Rhythm"]) for row in rows.values())
+    assert set(rows["GT"]["rhythm"]["mismatched"]) >= {"other window, draw 0", "shifted 1 s"}
+    assert "rhythm: the ground truth's gain / its spread >= 5" in r["checks"]
+    assert "rhythm: no audio model, |gain| within 3 spreads of 0" in r["checks"]
+    assert set(whole["rhythm"]) == {"ours", "ground truth"} and "## Rhythm" in md
     # outputs are never replaced silently
     again = subprocess.run(cli(*args), capture_output=True, text=True)
     assert again.returncode != 0 and "--overwrite" in again.stderr and len(again.stderr.strip().splitlines()) == 1
@@ -224,3 +235,27 @@ def test_model_info_gesture_prints_the_paper_counts(capsys):
         assert f"{counts[name]:,}" in text
     assert 17e6 < counts["prior"] < 19e6 and 80e6 < counts["denoiser"] < 90e6
     assert "50 DDIM steps" in text
+
+
+def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(trained):
+    from emogesture.audio import load_audio
+    from emogesture.pipeline.conditions import (emotion_label_edit, generate_from_conditions, model_conditions,
+                                                window_seeds)
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+
+    model = load_model(trained / "timing", "gesture")
+    assert model.config.hears_timing and model.config.denoiser.timing_tokens == 10
+    assert model.extra["residual_calibration"]["split"] == "val"  # calibrated with its stream
+    cache = open_cache(trained / "cache")
+    conds = model_conditions(model, cache, "test", SpeechLatentEncoder.of_gesture_model(model))
+    assert len(conds) == 4 and conds[3].shape == (len(conds[0]), 300, 2)
+    seeds = window_seeds(0, len(conds[0]))
+    own = generate_from_conditions(model, conds, seeds, residual=False)
+    other = generate_from_conditions(model, [*conds[:3], np.roll(conds[3], 40, axis=1)], seeds, residual=False)
+    assert not np.allclose(own, other)  # the stream changes the motion, all else equal
+    edited = emotion_label_edit(model, conds, np.zeros(len(conds[0]), np.int64))  # an edit keeps the own stream
+    assert len(edited) == 4 and edited[3] is conds[3] and edited[0] is conds[0]
+    wave, _ = load_audio(next((trained / "root" / "wave16k").glob("*.wav")))
+    seq = GesturePipeline.from_run(trained / "timing").generate(wave, seed=0, seam_candidates=2)[0]
+    assert len(seq.poses) == int(round(len(wave) / 16000 * 30))

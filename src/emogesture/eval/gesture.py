@@ -1,8 +1,10 @@
-"""``emogesture evaluate gesture``: paper Table 1 (SRGR, BA, FGD, Div, GA) plus wrist jerk and speed.
+"""``emogesture evaluate gesture``: paper Table 1 (SRGR, BA, FGD, Div, GA) plus wrist jerk and speed,
+and the rhythm gain (:mod:`emogesture.eval.rhythm`).
 
 Every source is a set of motion windows aligned with one split of a windows cache. The extractor M
 embeds them (FGD, Div) and classifies their emotion (GA); forward kinematics on the licence-free
-skeleton gives joint positions for BA, SRGR and jerk; audio onsets come from the cache's source audio.
+skeleton gives joint positions for BA, SRGR, jerk and rhythm; audio onsets and onset envelopes come from
+the cache's source audio.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import detect_onsets, load_audio
+from emogesture.audio import detect_onsets, load_audio, onset_strength
+from emogesture.eval.rhythm import RHYTHM_CONSTANTS, arm_speed, envelope_at_frames, mismatched_envelopes, rhythm_gain
 from emogesture.eval.motion_stats import motion_statistics, motion_stats_markdown
 from emogesture.eval.report import split_use_line
 from emogesture.checkpoints import LoadedModel, load_model, split_use, write_text_atomic
@@ -30,7 +33,7 @@ from emogesture.eval.metrics import (
 from emogesture.eval.plots import save_confusion_matrix
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 
-COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed")
+COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed", "Rhythm")
 
 
 @dataclass
@@ -53,25 +56,35 @@ class GestureEvaluator:
         self.mean = torch.tensor(extractor.extra["motion_mean"], dtype=torch.float32)
         self.std = torch.tensor(extractor.extra["motion_std"], dtype=torch.float32)
         self.body = SkeletonBody()
-        self.onsets = self._window_onsets()
+        self.onsets, self.envelopes = self._window_onsets()
+        self.rhythm_audio = None  # (own [W, T], mismatched name -> [W, T]) onset envelopes
+        if self.envelopes is not None:
+            frames = self.windows.motion.shape[1]
+            starts = [int(round(s * fps)) for s in self.windows.start_s]
+            self.rhythm_audio = mismatched_envelopes(self.envelopes, self.windows.takes, starts, self.windows.text,
+                                                     frames, seed=RHYTHM_CONSTANTS["seed"], fps=fps)
         self.gt = self.embed(np.asarray(self.windows.motion, np.float32))
 
-    def _window_onsets(self) -> list[np.ndarray] | None:
-        """Audio onset times (s, relative to each window's start) for every window, or None without audio."""
+    def _window_onsets(self) -> tuple[list[np.ndarray] | None, dict[str, np.ndarray] | None]:
+        """Audio onset times (s, relative to each window's start) for every window, and each take's
+        onset envelope at the motion's frame rate; ``(None, None)`` without audio."""
         root = Path(self.cache.manifest["root"])
         per_take: dict[str, np.ndarray] = {}
+        envelopes: dict[str, np.ndarray] = {}
         out = []
         window_s = self.windows.motion.shape[1] / self.fps
         for take, start in zip(self.windows.takes, self.windows.start_s):
             if take not in per_take:
                 wav = root / "wave16k" / f"{take}.wav"
                 if not wav.is_file():
-                    return None
+                    return None, None
                 wave, sr = load_audio(wav)
-                per_take[take] = detect_onsets(wave, sr)
+                envelope = onset_strength(wave, sr)
+                per_take[take] = detect_onsets(wave, sr, envelope=envelope)
+                envelopes[take] = envelope_at_frames(envelope, sr, int(round(len(wave) / sr * self.fps)), self.fps)
             on = per_take[take]
             out.append(on[(on >= start) & (on < start + window_s)] - start)
-        return out
+        return out, envelopes
 
     @torch.no_grad()
     def embed(self, motion: np.ndarray, batch_size: int = 64) -> Embedded:
@@ -104,7 +117,12 @@ class GestureEvaluator:
             "GA": rep["accuracy"],
             "Jerk": float(np.mean([wrist_jerk(j, fps=self.fps) for j in e.joints])),
             "Speed": float(np.mean([wrist_speed(j, fps=self.fps) for j in e.joints])),
+            "Rhythm": np.nan,
         }
+        if self.rhythm_audio is not None:
+            own, mismatched = self.rhythm_audio
+            rhythm = rhythm_gain(arm_speed(e.joints, fps=self.fps), own, mismatched, fps=self.fps)
+            row["Rhythm"], row["rhythm"] = rhythm["gain"], rhythm
         return row, rep["confusion"]
 
     @torch.no_grad()
@@ -133,13 +151,41 @@ def gesture_markdown(result: dict) -> str:
     lines += ["", f"FGD between two disjoint halves of the ground-truth takes: {result['gt_split_half_fgd']:.3f} "
               "(the noise floor of FGD on this split).",
               "SRGR, BA, GA, Div: higher is better (Div: closer to GT); FGD, Jerk: lower is better (Jerk: m/s³, "
-              "closer to GT). Speed: mean wrist speed, m/s (closer to GT).", "",
+              "closer to GT). Speed: mean wrist speed, m/s (closer to GT). Rhythm: rhythm gain (below).",
+              "BA here does not measure whether motion follows the speech: the corpus's speech has onsets every "
+              "few tenths of a second, so with σ = 0.3 s any motion's beats lie near one (compare the mismatched "
+              "and shifted ground truth); the rhythm gain does.", "",
               f"Extractor: {result['extractor']}", ""]
+    if any("rhythm" in row for row in result["rows"].values()):
+        lines += [rhythm_markdown(result).rstrip(), ""]
     if result.get("motion_stats"):
         lines += ["## Motion statistics (`emogesture motion-stats`: per-window, pooled)", "",
                   motion_stats_markdown(result["motion_stats"]).rstrip(), ""]
     lines += ["Constants: " + json.dumps(result["constants"]), ""]
     return "\n".join(lines)
+
+
+def rhythm_markdown(result: dict) -> str:
+    """The rhythm section of a gesture report (sources with audio envelopes only)."""
+    rc = result["constants"].get("rhythm", RHYTHM_CONSTANTS)
+    lines = ["## Rhythm (arm speed against the speech's onset envelope)", "",
+             f"Pearson correlation of the arm joints' mean speed with the audio's onset-strength envelope inside "
+             f"each window (both smoothed, σ {rc['smooth_s']} s), at lags up to ±{rc['max_lag_s']} s, averaged over "
+             "windows; score = the best lag's. Gain = score against the window's own audio minus the mean score of "
+             f"the same motion against mismatched audio ({rc['other_window_draws']} draws of another text's window, "
+             f"the same take shifted by {', '.join(f'{s:g}' for s in rc['shifts_s'])} s); spread = the standard "
+             "deviation of those mismatched scores. Follows the speech: gain ≥ "
+             f"{rc['discrimination_factor']:g} × spread; within noise: |gain| ≤ {rc['noise_factor']:g} × spread.", "",
+             "| source | score (own audio) | best lag (s) | mismatched, mean | gain | spread | gain / spread |",
+             "|---|---|---|---|---|---|---|"]
+    for name, row in result["rows"].items():
+        r = row.get("rhythm")
+        if r is None:
+            continue
+        mis = float(np.mean(list(r["mismatched"].values())))
+        lines.append(f"| {name} | {r['score']:.4f} | {r['lag_s']:+.2f} | {mis:.4f} | {r['gain']:.4f} | "
+                     f"{r['spread']:.4f} | {r['gain_over_spread']:.1f} |")
+    return "\n".join(lines) + "\n"
 
 
 def _fmt(v: float) -> str:
@@ -190,7 +236,8 @@ def evaluate_gesture(cache_dir: Path, extractor_run: Path, sources: dict, out_di
         "rows": rows, "motion_stats": stats, "gt_split_half_fgd": ev.split_half_fgd(seed),
         "audio_onsets": ev.onsets is not None,
         "constants": {**{k: (list(v) if isinstance(v, tuple) else v) for k, v in METRIC_CONSTANTS.items()},
-                      "div_seed": seed, "seed": seed, "body": "licence-free mannequin-x skeleton"},
+                      "div_seed": seed, "seed": seed, "body": "licence-free mannequin-x skeleton",
+                      "rhythm": {k: (list(v) if isinstance(v, tuple) else v) for k, v in RHYTHM_CONSTANTS.items()}},
         "seconds": round(time.monotonic() - t0, 1),
     }
     for path, text in ((json_path, json.dumps(result, indent=1)), (md_path, gesture_markdown(result))):

@@ -21,21 +21,25 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import load_audio, window_starts
+from emogesture.audio import load_audio, onset_strength, window_starts
 from emogesture.checkpoints import load_model, split_use, write_text_atomic
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache, open_cache
 from emogesture.errors import EmogestureError, OutputExistsError
 from emogesture.eval.gesture import GestureEvaluator, evaluate_gesture, gesture_markdown
 from emogesture.eval.metrics import UPPER_BODY_JOINTS
+from emogesture.eval.rhythm import (
+    RHYTHM_CONSTANTS, arm_speed, consecutive_windows, cut_windows, envelope_at_frames,
+    mismatched_envelopes, other_window_pairs, rhythm_gain, within_noise,
+)
 from emogesture.eval import sources as src
 from emogesture.config import from_dict
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.pipeline.conditions import (
     emotion_label_edit,
     generate_from_conditions,
+    model_conditions,
     reconstruct_motion,
-    window_conditions,
     window_seeds,
 )
 from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline, largest_joint_jumps
@@ -167,10 +171,14 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
     thousands of jumps, next to :func:`ground_truth_seam_reference` over the same takes."""
     root = Path(cache.manifest["root"])
     seam_parts, inside_parts = [], []
-    takes = list(dict.fromkeys(cache.split(split).takes))
+    windows = cache.split(split)
+    takes = list(dict.fromkeys(windows.takes))
+    speeds, envelopes = {}, {}
     for take in takes:
-        wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
+        wave, sr = load_audio(root / "wave16k" / f"{take}.wav")
         joints, starts = generated_joints(pipe, wave, seed, hop_seconds, seam_candidates)
+        speeds[take] = arm_speed(joints, fps=FPS)
+        envelopes[take] = envelope_at_frames(onset_strength(wave, sr), sr, len(joints), FPS)
         if len(starts) < 2:
             continue
         jump = largest_joint_jumps(joints)
@@ -179,9 +187,33 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
         inside_parts.append(jump[~seam])
     if not seam_parts:
         raise EmogestureError(f"no take of the {split} split is long enough for window seams")
+    text = dict(zip(windows.takes, windows.text.tolist()))
     return seam_statistics(np.concatenate(seam_parts), np.concatenate(inside_parts)) | {
         "takes": len(seam_parts), "seam_candidates": seam_candidates,
-        "ground_truth": ground_truth_seam_reference(cache, split, takes, hop_seconds)}
+        "ground_truth": ground_truth_seam_reference(cache, split, takes, hop_seconds),
+        "rhythm": whole_take_rhythm(speeds, envelopes, text, cache)}
+
+
+def whole_take_rhythm(speeds: dict[str, np.ndarray], envelopes: dict[str, np.ndarray], text: dict[str, int],
+                      cache: WindowsCache) -> dict:
+    """The rhythm gain (:mod:`emogesture.eval.rhythm`) of takes generated whole (take -> arm speed ``[N]``)
+    and of their ground truth, each cut into consecutive 10-s windows; mismatched audio as in the report."""
+    frames = int(round(WINDOW_SECONDS * FPS))
+    spec = from_dict(MotionFeatureSpec, cache.manifest["config"]["features"])
+    body = SkeletonBody()
+    gt = {}
+    for take in speeds:
+        with torch.no_grad():
+            joints = body.forward_features(torch.from_numpy(np.asarray(src.take_motion(cache, take), np.float32)), spec)
+        gt[take] = arm_speed(joints.numpy(), fps=FPS)
+    out = {}
+    for name, speed in (("ours", speeds), ("ground truth", gt)):
+        takes, starts = consecutive_windows({k: min(len(v), len(envelopes[k])) for k, v in speed.items()}, frames)
+        own, mismatched = mismatched_envelopes(envelopes, takes, starts, [text[t] for t in takes], frames,
+                                               seed=RHYTHM_CONSTANTS["seed"], fps=FPS)
+        out[name] = rhythm_gain(cut_windows(speed, takes, starts, frames), own, mismatched, fps=FPS) | {
+            "windows": len(takes)}
+    return out
 
 
 def _ratio(v: dict) -> float:
@@ -230,6 +262,19 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
         if "GT, mismatched audio" in rows:
             report("BA(GT, mismatched audio) / BA(GT)", rows["GT, mismatched audio"]["BA"] / gt["BA"])
     report("Div / Div(GT) (no check: every source but the mean pose lies within 20 %)", ours["Div"] / gt["Div"])
+    if "rhythm" in gt:  # issue 18: a measure that can fail, and a model that follows the speech's timing
+        factor, noise = RHYTHM_CONSTANTS["discrimination_factor"], RHYTHM_CONSTANTS["noise_factor"]
+        g = gt["rhythm"]
+        check(f"rhythm: the ground truth's gain / its spread >= {factor:g}", g["gain_over_spread"], factor)
+        for name in ("mean pose", "no audio model", f"{model}, timing stream of another window"):
+            r = rows.get(name, {}).get("rhythm")
+            if r is not None:
+                checks[f"rhythm: {name}, |gain| within {noise:g} spreads of 0"] = {
+                    "value": abs(r["gain"]) / r["spread"] if r["spread"] > 0 else (np.inf if r["gain"] else 0.0),
+                    "threshold": noise, "pass": bool(within_noise(r, noise))}
+        if "rhythm" in ours:
+            check("rhythm: gain / the ground truth's gain >= 0.6", ours["rhythm"]["gain"] / g["gain"], 0.6)
+            report("rhythm: gain / its spread", ours["rhythm"]["gain_over_spread"])
     if long is not None:
         one, chosen = long.get("candidates_1"), long.get("candidates_4")
         if one is not None and "ground_truth" in long:
@@ -243,6 +288,9 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
                   _ratio(every), _ratio(every["ground_truth"]), higher_is_better=False)
             for name, v in (("ours", every), ("ground truth", every["ground_truth"])):
                 report(f"every take whole, {name}: share of seam jumps above p99 inside", v["seam_share_above_p99"])
+            if "rhythm" in every:
+                for name, v in every["rhythm"].items():
+                    report(f"every take whole, {name}: rhythm gain", v["gain"])
     return checks
 
 
@@ -275,7 +323,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         if speech is not None:
             parts[f"{name}: speech model"] = speech.loaded
         split_use(split, parts)  # refuses a split any part trained on, before the work
-        conds = window_conditions(variant, cache, split, speech)
+        conds = model_conditions(gesture, cache, split, speech)
         seeds = window_seeds(seed, len(windows))
         sources[name] = generate_from_conditions(gesture, conds, seeds)
         perception = perception_of(speech) if name == main and speech is not None else None
@@ -284,7 +332,11 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
             auto_trust[f"{name}, emotion auto"] = {"windows": int(len(trust)), "trusted": int((trust >= 1).sum()),
                                                    "mean_trust": float(trust.mean())}
             sources[f"{name}, emotion auto"] = generate_from_conditions(
-                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), conds[2]], seeds)
+                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), *conds[2:]], seeds)
+        if gesture.config.hears_timing:  # the control: the stream of another window, all else its own
+            other = other_window_pairs(windows.text, seed, 1)[0]
+            sources[f"{name}, timing stream of another window"] = generate_from_conditions(
+                gesture, [*conds[:-1], conds[-1][other]], seeds)
         if name == edit_model:
             known = [EMOTIONS.index(k) for k in gesture.extra.get("emotion_latent_means", {})]
             targets = edit_targets(windows.emotion, seed, known)
@@ -366,6 +418,13 @@ def gesture_models_markdown(r: dict) -> str:
                 lines.append(f"| {name} | {v['takes']} | {v['seam_jumps']} | {v['max_seam_jump_m'] * 1000:.1f} | "
                              f"{v['p99_inside_jump_m'] * 1000:.1f} | {v['max_seam_jump_m'] / v['p99_inside_jump_m']:.2f} | "
                              f"{100 * v['seam_share_above_p99']:.2f} % |")
+        if "rhythm" in la.get("every_take", {}):
+            lines += ["", "Rhythm of the takes generated whole (consecutive 10-s windows of each take; mismatched "
+                      "audio as in the rhythm table):", "", "| motion | windows | score | gain | spread | gain / spread |",
+                      "|---|---|---|---|---|---|"]
+            for name, v in la["every_take"]["rhythm"].items():
+                lines.append(f"| {name} | {v['windows']} | {v['score']:.4f} | {v['gain']:.4f} | {v['spread']:.4f} | "
+                             f"{v['gain_over_spread']:.1f} |")
     lines += ["", "## Checks", "", "| check | value | threshold | pass |", "|---|---|---|---|"]
     for name, c in r["checks"].items():
         thr = "-" if c["threshold"] is None else f"{c['threshold']:g}"

@@ -17,7 +17,8 @@ from emogesture.errors import InputFileError
 from emogesture.motion import MotionFeatureSpec, load_smplx_npz, poses_to_features
 
 
-def _take_motion(cache: WindowsCache, take: str) -> np.ndarray:
+def take_motion(cache: WindowsCache, take: str) -> np.ndarray:
+    """A whole take's raw motion features ``[N, D]`` from the cache."""
     with np.load(cache.root / "takes" / f"{take}.npz") as z:
         return z["motion"]
 
@@ -59,7 +60,7 @@ def time_shifted(windows: SplitWindows, cache: WindowsCache, shift_s: float = 1.
     current, motion = None, None
     for i, (take, start) in enumerate(zip(windows.takes, windows.start_s)):
         if take != current:
-            motion, current = _take_motion(cache, take), take
+            motion, current = take_motion(cache, take), take
         s = int(round((start + shift_s) * fps))
         if s + frames > len(motion):
             s = int(round((start - shift_s) * fps))

@@ -39,8 +39,18 @@ class GestureModelConfig:
         want = 1 if self.variant == "no_audio" else 3
         if self.denoiser.num_conditions != want:
             raise ConfigError(f"variant {self.variant} needs denoiser.num_conditions = {want}")
+        if self.variant == "no_audio" and self.denoiser.timing_tokens:
+            raise ConfigError("the no_audio variant hears no speech, so it takes no timing stream (denoiser.timing_tokens = 0)")
+        if self.denoiser.timing_tokens and self.denoiser.timing_frames != self.vae.frames:
+            raise ConfigError(f"denoiser.timing_frames ({self.denoiser.timing_frames}) must equal vae.frames "
+                              f"({self.vae.frames}): the stream covers the window's motion frames")
         if self.vae.latent_dim != self.denoiser.latent_dim:
             raise ConfigError("vae.latent_dim and denoiser.latent_dim must agree")
+
+    @property
+    def hears_timing(self) -> bool:
+        """True when the denoiser takes the timing stream after its condition latents (issue 18)."""
+        return self.denoiser.timing_tokens > 0
 
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
@@ -149,6 +159,8 @@ def gesture_flops(config: GestureModelConfig) -> dict[str, int]:
         motion = torch.zeros(1, config.vae.frames, config.vae.feature_dim)
         z = torch.zeros(1, config.vae.latent_dim)
         conds = [torch.zeros(1, config.denoiser.cond_dim) for _ in range(config.denoiser.num_conditions)]
+        if config.hears_timing:
+            conds.append(torch.zeros(1, config.denoiser.timing_frames, config.denoiser.timing_features))
         t = torch.zeros(1, dtype=torch.long)
         mfcc = torch.zeros(1, config.mfcc_dim)
     out = {}

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import mfcc_from_log_mel
+from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache
@@ -35,29 +36,39 @@ def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int 
 
 
 def window_conditions(variant: str, cache: WindowsCache, split: str,
-                      speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
+                      speech: SpeechLatentEncoder | None, timing: bool = False) -> list[np.ndarray]:
     """Raw condition arrays of every window of a split: ``[c, e, s]`` latents ``[W, 256]`` each, or
-    ``[mfcc [W, 13 * 128]]`` for the ``no_audio`` variant (its autoencoder runs inside the model)."""
+    ``[mfcc [W, 13 * 128]]`` for the ``no_audio`` variant (its autoencoder runs inside the model);
+    ``timing``: followed by the windows' timing stream ``[W, T, 2]`` (:func:`timing_stream`)."""
+    w = cache.split(split)
     if variant == "no_audio":
-        w = cache.split(split)
         return [mfcc_windows(w.fbank, cache.stats["fbank_mean"], cache.stats["fbank_std"])]
     if speech is None:
         raise EmogestureError(f"variant {variant} needs a speech model for its conditions")
     enc = speech.encode_split(cache, split)
-    return [enc.content, enc.emotion, enc.style]
+    out = [enc.content, enc.emotion, enc.style]
+    if timing:
+        out.append(timing_stream(w.fbank, frames=int(w.motion.shape[1])))
+    return out
+
+
+def model_conditions(gesture: LoadedModel, cache: WindowsCache, split: str,
+                     speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
+    """:func:`window_conditions` of what ``gesture`` takes (its variant, its timing stream if any)."""
+    return window_conditions(gesture.config.variant, cache, split, speech, timing=gesture.config.hears_timing)
 
 
 def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
     """Replace each window's emotion latent by the stored mean latent of its target label ``labels [W]``."""
     means = gesture.extra.get("emotion_latent_means")
-    if not means or len(conditions) != 3:
+    if not means or len(conditions) < 3:
         raise EmogestureError(f"{gesture.path}: this model has no emotion latents to edit")
     missing = sorted({EMOTIONS[k] for k in labels.tolist()} - set(means))
     if missing:
         raise EmogestureError(f"{gesture.path}: no mean emotion latent for {', '.join(missing)}")
     table = {EMOTIONS.index(k): np.asarray(v, np.float32) for k, v in means.items()}
     emotion = np.stack([table[int(k)] for k in labels])
-    return [conditions[0], emotion, conditions[2]]
+    return [conditions[0], emotion, *conditions[2:]]  # the timing stream, if any, stays the speech's own
 
 
 def window_seeds(seed: int, count: int) -> list[int]:

@@ -214,7 +214,8 @@ class GesturePipeline:
                    ) -> list[np.ndarray]:
         """Condition latents ``[c, e, s]`` ``[W, 256]`` of encoded windows: ``emotion_mode`` ``auto``
         blends untrusted emotion latents toward neutral (:mod:`emogesture.pipeline.perception`), ``own``
-        keeps them; then the edit, if any."""
+        keeps them; then the edit, if any. A model that hears timing also gets the windows' own timing
+        stream ``[W, 300, 2]`` (never the edit source's)."""
         if emotion_mode not in EMOTION_MODES:
             raise EmogestureError(f"emotion mode {emotion_mode!r}: choose one of {', '.join(EMOTION_MODES)}")
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
@@ -234,6 +235,11 @@ class GesturePipeline:
                 e = ((1.0 - edit.emotion_weight) * e + edit.emotion_weight * target).astype(np.float32)
             if edit.style_from is not None:
                 s = edit.style_from[np.arange(n) % len(edit.style_from)].astype(np.float32)
+        if self.loaded.config.hears_timing:
+            if enc.timing is None:
+                raise EmogestureError(f"{self.loaded.path}: this model hears the speech's timing; encode the audio "
+                                      "with SpeechLatentEncoder.encode (it computes the timing stream)")
+            return [c, e, s, enc.timing]
         return [c, e, s]
 
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],

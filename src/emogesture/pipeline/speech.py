@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank, window_starts
+from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
@@ -22,13 +23,18 @@ FBANK_RATE = 100  # frames per second
 
 @dataclass
 class EncodedWindows:
-    """Latents of ``W`` windows: ``content/emotion/style [W, 256]``, logits ``[W, 8]`` / ``[W, n]``."""
+    """Latents of ``W`` windows: ``content/emotion/style [W, 256]``, logits ``[W, 8]`` / ``[W, n]``, and
+    (from :meth:`SpeechLatentEncoder.encode`) the windows' timing stream ``[W, 300, 2]``."""
 
     content: np.ndarray
     emotion: np.ndarray
     style: np.ndarray
     emotion_logits: np.ndarray
     speaker_logits: np.ndarray
+    timing: np.ndarray | None = None
+
+    #: What the per-split latents cache stores (the timing stream is recomputed from the windows).
+    stored = ("content", "emotion", "style", "emotion_logits", "speaker_logits")
 
     @property
     def latents(self) -> AudioLatents:
@@ -97,8 +103,10 @@ class SpeechLatentEncoder:
         fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
         starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
         frames = [int(round(s * FBANK_RATE)) for s in starts]
-        windows = fbank_windows(fb, frames, self.window_frames)
-        return self.encode_windows(np.asarray(windows), progress=progress), starts
+        windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
+        enc = self.encode_windows(windows, progress=progress)
+        enc.timing = timing_stream(windows)
+        return enc, starts
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
         """Latents of every window of a prepared split, cached next to the model file.
@@ -112,12 +120,12 @@ class SpeechLatentEncoder:
         path = Path(self.loaded.path).parent / "latents" / f"{key}.npz"
         if path.is_file():
             with np.load(path) as z:
-                return EncodedWindows(*(z[k] for k in EncodedWindows.__dataclass_fields__))
+                return EncodedWindows(*(z[k] for k in EncodedWindows.stored))
         enc = self.encode_windows(windows.fbank, batch_size,
                                   renormalise=(cache.stats["fbank_mean"], cache.stats["fbank_std"]))
         from emogesture.motion import write_npz_atomic
 
-        write_npz_atomic(path, {k: getattr(enc, k) for k in EncodedWindows.__dataclass_fields__}, overwrite=True)
+        write_npz_atomic(path, {k: getattr(enc, k) for k in EncodedWindows.stored}, overwrite=True)
         return enc
 
 

@@ -2,7 +2,7 @@
 
 Each step: (1) prior forward on the motion m -> m̂: L_rec (smooth L1, features), L_Vrec (smooth L1,
 joint positions of the licence-free skeleton), L_KL; (2) z_m = P_E(m) without gradient, noised at a
-random t: L_LD = ||target - Δ(z_t, t, c, e, s)||², target = ε in the paper (the noise; z_m or v by
+random t: L_LD = ||target - Δ(z_t, t, c, e, s[, timing stream])||², target = ε in the paper (the noise; z_m or v by
 ``model.diffusion.prediction_type``; the tiny preset regresses z_m, so its logged ``ld`` is in latent
 units and not comparable with ε-runs); (3) without gradient, the full DDIM loop from noise
 with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
@@ -33,7 +33,7 @@ from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_sched
 from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
-from emogesture.pipeline.conditions import calibrate_residual, window_conditions
+from emogesture.pipeline.conditions import calibrate_residual, model_conditions, window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
@@ -196,7 +196,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         if phase_denoiser:
             z0 = z.detach()
             r = cfg.ld_repeats  # each window noised at r timesteps: r × the denoiser's samples per step
-            z0r, conds_r = z0.repeat(r, 1), [c.repeat(r, 1) for c in conds]
+            z0r, conds_r = z0.repeat(r, 1), [c.repeat(r, *[1] * (c.dim() - 1)) for c in conds]
             noise = draw_noise(g, b * r, z0.shape[1]).to(z0)
             t = sample_timesteps(g, b * r, cfg.model.diffusion.num_train_timesteps).to(z0.device)
             pred = self.model.denoiser(add_noise(self.ddpm, z0r, noise, t), t, conds_r)
@@ -238,7 +238,8 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
     train = cache.split("train")
     variant = config.model.variant
     speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(speech_run)
-    conds = window_conditions(variant, cache, "train", speech)
+    timing = config.model.hears_timing
+    conds = window_conditions(variant, cache, "train", speech, timing)
     mean = np.asarray(cache.stats["motion_mean"], np.float32)
     std = np.asarray(cache.stats["motion_std"], np.float32)
     config.model.vae.feature_dim = int(train.motion.shape[2])
@@ -265,7 +266,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
                   "not calibrated there (the model samples without it); `emogesture calibrate gesture --split` "
                   "on windows no part saw can add it", file=sys.stderr)
         elif "val" in cache.splits:
-            calibration = (window_conditions(variant, cache, "val", speech), cache.split("val").motion)
+            calibration = (window_conditions(variant, cache, "val", speech, timing), cache.split("val").motion)
         else:
             print(f"note: {cache_dir} has no val windows, so the model will not be calibrated and will sample "
                   "without residual noise (`emogesture calibrate gesture` can add it later)", file=sys.stderr)
@@ -300,7 +301,7 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
     refuse_trained_split(split, gesture, *([speech.loaded] if speech is not None else []), purpose="calibrate")
     windows = cache.split(split)
-    stats = calibrate_residual(gesture, window_conditions(variant, cache, split, speech), windows.motion, seed=seed)
+    stats = calibrate_residual(gesture, model_conditions(gesture, cache, split, speech), windows.motion, seed=seed)
     stats.update(step=gesture.extra.get("step"), split=split)
     gesture.config.diffusion.residual_scale = float(scale)
     save_model(out, "gesture", gesture.model, gesture.config, {**gesture.extra, "residual_calibration": stats})
