@@ -46,7 +46,8 @@ def trained(tmp_path_factory):
                                  *SMALL), capture_output=True, text=True)
         assert out.returncode == 0, (variant, out.stderr[-2000:])
     out = subprocess.run(cli("train", "gesture", "--data", d / "cache", "--speech", d / "speech", "--out", d / "timing",
-                             "--steps", 4, "--quiet", *SMALL, "--set", "model.denoiser.timing_tokens=10"),
+                             "--steps", 4, "--quiet", *SMALL, "--set", "model.denoiser.timing_tokens=10",
+                             "--set", "model.vae.timing_features=2"),
                          capture_output=True, text=True)  # issue 18: the denoiser hears the speech's timing
     assert out.returncode == 0, out.stderr[-2000:]
     return d
@@ -245,7 +246,7 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     from emogesture.pipeline.speech import SpeechLatentEncoder
 
     model = load_model(trained / "timing", "gesture")
-    assert model.config.hears_timing and model.config.denoiser.timing_tokens == 10
+    assert model.config.hears_timing and model.config.denoiser.timing_tokens == 10 and model.config.vae.timing_features == 2
     assert model.extra["residual_calibration"]["split"] == "val"  # calibrated with its stream
     cache = open_cache(trained / "cache")
     conds = model_conditions(model, cache, "test", SpeechLatentEncoder.of_gesture_model(model))

@@ -99,3 +99,26 @@ def test_denoiser_timing_tokens_are_used_and_checked():
     with pytest.raises(ConfigError):
         DenoiserConfig(timing_tokens=7)
     assert DenoiserConfig().num_tokens == 5  # the paper's denoiser is unchanged
+
+
+def test_a_decoder_that_reads_timing_starts_as_the_plain_one_and_checks_its_stream():
+    from emogesture.models.gesture import GestureModelConfig
+    from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
+
+    cfg = MotionVAEConfig.preset("tiny", frames=60)
+    cfg.timing_features = 2
+    vae = MotionVAE(cfg).eval()
+    z = torch.randn(2, 256)
+    stream = torch.randn(2, 60, 2)
+    with torch.no_grad():
+        start = vae.decode(z, timing=stream)
+        vae.timing_to_query.weight.normal_()
+        moved = vae.decode(z, timing=stream)
+    assert start.shape == (2, 60, 282) and not torch.allclose(start, moved)  # zero at first, then it counts
+    with pytest.raises(ValueError, match="timing stream"):
+        vae.decode(z)
+    gm = GestureModelConfig.preset("tiny")
+    gm.vae.timing_features = 2
+    assert gm.hears_timing and gm.timing_features == 2 and gm.denoiser.num_inputs == 3
+    with pytest.raises(ConfigError):
+        GestureModelConfig(variant="no_prior", vae=cfg, denoiser=DenoiserConfig(width=256, layers=3, heads=2))

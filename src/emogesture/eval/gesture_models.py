@@ -314,6 +314,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
     auto_trust: dict = {}
     loaded: dict = {}
     parts: dict = {}  # every model behind the numbers, for the report's split use
+    streams: dict = {}  # each model's timing stream of the split's windows (None: it reads none)
     for name, run in models.items():
         gesture = load_model(run, "gesture")
         loaded[name] = gesture
@@ -324,6 +325,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
             parts[f"{name}: speech model"] = speech.loaded
         split_use(split, parts)  # refuses a split any part trained on, before the work
         conds = model_conditions(gesture, cache, split, speech)
+        streams[name] = conds[-1] if gesture.config.hears_timing else None
         seeds = window_seeds(seed, len(windows))
         sources[name] = generate_from_conditions(gesture, conds, seeds)
         perception = perception_of(speech) if name == main and speech is not None else None
@@ -350,7 +352,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
                                                              ev.gt.joints)}}
     for name, gesture in loaded.items():
         if gesture.config.variant != "no_prior":
-            rec = reconstruct_motion(gesture, np.asarray(windows.motion, np.float32))
+            rec = reconstruct_motion(gesture, np.asarray(windows.motion, np.float32), timing=streams[name])
             recon[name] = {"joint_error_m": mean_joint_error(ev.embed(rec).joints, ev.gt.joints)}
     long = None
     if long_audio_seconds > 0:

@@ -39,8 +39,14 @@ class GestureModelConfig:
         want = 1 if self.variant == "no_audio" else 3
         if self.denoiser.num_conditions != want:
             raise ConfigError(f"variant {self.variant} needs denoiser.num_conditions = {want}")
-        if self.variant == "no_audio" and self.denoiser.timing_tokens:
-            raise ConfigError("the no_audio variant hears no speech, so it takes no timing stream (denoiser.timing_tokens = 0)")
+        if self.variant == "no_audio" and self.hears_timing:
+            raise ConfigError("the no_audio variant hears no speech, so it takes no timing stream "
+                              "(denoiser.timing_tokens and vae.timing_features = 0)")
+        if self.variant == "no_prior" and self.vae.timing_features:
+            raise ConfigError("the no_prior variant's linear map reads no timing stream (vae.timing_features = 0)")
+        if self.vae.timing_features and self.denoiser.timing_tokens \
+                and self.vae.timing_features != self.denoiser.timing_features:
+            raise ConfigError("vae.timing_features and denoiser.timing_features must agree (one stream)")
         if self.denoiser.timing_tokens and self.denoiser.timing_frames != self.vae.frames:
             raise ConfigError(f"denoiser.timing_frames ({self.denoiser.timing_frames}) must equal vae.frames "
                               f"({self.vae.frames}): the stream covers the window's motion frames")
@@ -49,8 +55,14 @@ class GestureModelConfig:
 
     @property
     def hears_timing(self) -> bool:
-        """True when the denoiser takes the timing stream after its condition latents (issue 18)."""
-        return self.denoiser.timing_tokens > 0
+        """True when the model reads the speech's timing stream (issue 18): its denoiser (after its
+        condition latents) and/or its motion decoder. The stream then ends the model's conditions."""
+        return self.denoiser.timing_tokens > 0 or self.vae.timing_features > 0
+
+    @property
+    def timing_features(self) -> int:
+        """Numbers per frame of the timing stream (0 when the model reads none)."""
+        return self.vae.timing_features or (self.denoiser.timing_features if self.denoiser.timing_tokens else 0)
 
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
@@ -88,10 +100,10 @@ class LinearMotionMap(nn.Module):
         z = self.down(motion.reshape(motion.shape[0], -1))
         return z, z, torch.zeros_like(z)
 
-    def decode(self, z: torch.Tensor, frames: int | None = None) -> torch.Tensor:
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
         return self.up(z).reshape(z.shape[0], self.config.frames, self.config.feature_dim)
 
-    def forward(self, motion: torch.Tensor, generator=None, sample: bool = True):
+    def forward(self, motion: torch.Tensor, generator=None, sample: bool = True, timing=None):
         z, mu, logvar = self.encode(motion)
         return self.decode(z), z, mu, logvar
 
@@ -159,16 +171,17 @@ def gesture_flops(config: GestureModelConfig) -> dict[str, int]:
         motion = torch.zeros(1, config.vae.frames, config.vae.feature_dim)
         z = torch.zeros(1, config.vae.latent_dim)
         conds = [torch.zeros(1, config.denoiser.cond_dim) for _ in range(config.denoiser.num_conditions)]
-        if config.hears_timing:
-            conds.append(torch.zeros(1, config.denoiser.timing_frames, config.denoiser.timing_features))
+        timing = torch.zeros(1, config.vae.frames, config.timing_features) if config.hears_timing else None
+        if config.denoiser.timing_tokens:
+            conds.append(timing)
         t = torch.zeros(1, dtype=torch.long)
         mfcc = torch.zeros(1, config.mfcc_dim)
     out = {}
     with FlopCounterMode(display=False) as counter:
-        model.prior(motion, sample=False)
+        model.prior(motion, sample=False, timing=timing)
     out["prior"] = int(counter.get_total_flops())
     with FlopCounterMode(display=False) as counter:
-        model.prior.decode(z)
+        model.prior.decode(z, timing=timing)
     out["decode"] = int(counter.get_total_flops())
     with FlopCounterMode(display=False) as counter:
         model.denoiser(z, t, conds)

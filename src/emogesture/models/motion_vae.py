@@ -34,6 +34,11 @@ Two further options (not in MLD; off in the ``paper`` preset) make a small prior
   The transformers then only model what is left: the gesture strokes. The path's output Linear starts
   at zero (random cosines would only add noise).
 
+``timing_features = F > 0`` (issue 18; not in MLD, off in both presets): the decoder also reads the
+speech's timing stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, T, F]``): every query
+token gets ``Linear(the stream of the frames it covers)`` added, so each frame knows when the speech
+around it moves without that passing through z. The Linear starts at zero (the prior begins as MLD's).
+
 Measured on the default synthetic corpus (prior-only training: smooth L1 on features + on joint
 positions + 1e-4 KL, batch 32, 1 thread; held-out joint error as a fraction of the mean pose's):
 
@@ -74,6 +79,7 @@ class MotionVAEConfig:
     frames_per_token: int = 1
     latent_tokens: int = 1
     low_frequency_path: int = 0
+    timing_features: int = 0
 
     def __post_init__(self) -> None:
         if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token, self.latent_tokens) < 1:
@@ -85,6 +91,8 @@ class MotionVAEConfig:
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
+        if self.timing_features < 0:
+            raise ConfigError(f"motion VAE: timing_features must be ≥ 0, got {self.timing_features}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -155,6 +163,12 @@ class MotionVAE(nn.Module):
             nn.init.zeros_(self.low_frequency_out.bias)
         else:
             self.dct_basis = self.low_frequency_mu = self.low_frequency_out = None
+        if c.timing_features:  # the speech's timing stream added to the queries (issue 18)
+            self.timing_to_query = nn.Linear(k * c.timing_features, d)
+            nn.init.zeros_(self.timing_to_query.weight)
+            nn.init.zeros_(self.timing_to_query.bias)
+        else:
+            self.timing_to_query = None
         self.decoder = SkipTransformer(c.transformer(cross_attention=True))
         self.decoder_output = nn.Linear(d, k * c.feature_dim)
         for p in (self.dist_tokens, self.encoder_pos, self.decoder_pos, self.memory_pos):
@@ -193,8 +207,9 @@ class MotionVAE(nn.Module):
         eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
         return mu + torch.exp(0.5 * logvar) * eps, mu, logvar
 
-    def decode(self, z: torch.Tensor, frames: int | None = None) -> torch.Tensor:
-        """``z [B, 256] -> motion [B, T, 282]`` with ``T = frames`` (default: the configured maximum)."""
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
+        """``z [B, 256] -> motion [B, T, 282]`` with ``T = frames`` (default: the configured maximum);
+        ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``."""
         c = self.config
         t = c.frames if frames is None else int(frames)
         if not 1 <= t <= c.frames:
@@ -207,18 +222,32 @@ class MotionVAE(nn.Module):
         n = -(-t // c.frames_per_token)  # tokens
         pos = self.decoder_pos[:, :n]
         queries = torch.zeros(z.shape[0], n, c.width, device=z.device, dtype=z.dtype) + pos
+        if self.timing_to_query is not None:
+            queries = queries + self.timing_to_query(self._timing_tokens(timing, z.shape[0], n))
         out = self.decoder_output(self.decoder(queries, pos, memory))  # [B, n, k * D]
         if self.low_frequency_out is not None:  # the same cosines, weighted by a Linear of z
             coefficients = self.low_frequency_out(z).reshape(z.shape[0], c.low_frequency_path, -1)
             out = out + torch.einsum("nf,bfe->bne", self.dct_basis[:n], coefficients)
         return out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
 
+    def _timing_tokens(self, timing: torch.Tensor | None, b: int, n: int) -> torch.Tensor:
+        """The timing stream ``[B, >= n·k, F]`` grouped per query token: ``[B, n, k·F]``."""
+        c = self.config
+        k = c.frames_per_token
+        if timing is None or timing.dim() != 3 or timing.shape[0] != b or timing.shape[2] != c.timing_features \
+                or timing.shape[1] < n * k:
+            got = None if timing is None else tuple(timing.shape)
+            raise ValueError(f"this motion decoder reads a timing stream [B={b}, >={n * k}, {c.timing_features}], got {got}")
+        return timing[:, : n * k].reshape(b, n, k * c.timing_features)
+
     def forward(
-        self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True
+        self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True,
+        timing: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-        """``motion [B, T, 282]`` -> ``reconstruction [B, T, 282]``, ``z``, ``mu``, ``logvar`` ``[B, 256]``."""
+        """``motion [B, T, 282]`` (and the timing stream ``[B, T, F]`` when the decoder reads one) ->
+        ``reconstruction [B, T, 282]``, ``z``, ``mu``, ``logvar`` ``[B, 256]``."""
         z, mu, logvar = self.encode(motion, generator=generator, sample=sample)
-        return self.decode(z, frames=motion.shape[1]), z, mu, logvar
+        return self.decode(z, frames=motion.shape[1], timing=timing), z, mu, logvar
 
     @staticmethod
     def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:

@@ -95,6 +95,7 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
     steps = num_inference_steps or cfg.diffusion.num_inference_steps
     if any(len(c) != len(seeds) for c in conditions):
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
+    conditions = conditions[: cfg.denoiser.num_inputs]  # a stream only the decoder reads stays out
     out = []
     for i in range(0, len(seeds), batch_size):
         conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device)
@@ -128,11 +129,18 @@ def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64
 
 
 @torch.no_grad()
-def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64) -> np.ndarray:
-    """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]``."""
+def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64,
+                   timing: np.ndarray | None = None) -> np.ndarray:
+    """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]``; ``timing [W, T, F]``: the
+    windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``)."""
     model = gesture.model.eval()
     mean, std = _motion_statistics(gesture)
-    out = [model.prior.decode(z[i : i + batch_size], frames=frames).cpu().numpy() for i in range(0, len(z), batch_size)]
+    reads = gesture.config.vae.timing_features > 0
+    out = []
+    for i in range(0, len(z), batch_size):
+        stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
+                  if reads and timing is not None else None)
+        out.append(model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream).cpu().numpy())
     return np.concatenate(out) * std + mean
 
 
@@ -149,13 +157,16 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
     """
     z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress,
                        residual_weights)
-    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size)
+    timing = conditions[-1] if gesture.config.hears_timing else None
+    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size, timing)
 
 
-def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> np.ndarray:
+def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64,
+                       timing: np.ndarray | None = None) -> np.ndarray:
     """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
-    (encoder mean, then decoder), raw features ``[W, T, D]``."""
-    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size)
+    (encoder mean, then decoder), raw features ``[W, T, D]``; ``timing``: the windows' timing stream,
+    for a decoder that reads one."""
+    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size, timing)
 
 
 def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,

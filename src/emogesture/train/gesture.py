@@ -184,8 +184,12 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                     gt.append(self.joints(m))
             return gt[0]
 
+        # the speech's timing stream ends the conditions of a model that reads one (issue 18); the
+        # decoder reads it when vae.timing_features > 0, the denoiser when denoiser.timing_tokens > 0
+        stream = conds[-1] if cfg.model.vae.timing_features else None
+        conds = conds[: cfg.model.denoiser.num_inputs]
         if phase_prior:
-            rec, z, mu, logvar = prior(m, generator=g)
+            rec, z, mu, logvar = prior(m, generator=g, timing=stream)
             losses["rec"] = F.smooth_l1_loss(rec, m)
             losses["vrec"] = self.joint_loss(self.joints(rec), joints_gt())
             if variant != "no_prior":
@@ -204,7 +208,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
             if variant != "disjoint" and cfg.align_every > 0 and self.global_step % cfg.align_every == 0:
                 z_tilde = ddim_sample(self.model.denoiser, self.ddim, conds, g,
                                       num_inference_steps=cfg.align_ddim_steps, eta=cfg.model.diffusion.eta)
-                m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1])
+                m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1], timing=stream)
                 losses["align"] = F.smooth_l1_loss(m_tilde, m)
                 losses["valign"] = self.joint_loss(self.joints(m_tilde), joints_gt())
         if audio_rec is not None:
