@@ -29,13 +29,11 @@ def timing_stream(fbank: np.ndarray | torch.Tensor, frames: int = 300, fps: floa
     """Normalised fbank windows ``[W, N, n_mels]`` -> the timing stream ``[W, frames, 2]`` float32
     (see the module docstring). The first ``frames × 100 / fps`` fbank frames are used (zero-padded when
     shorter)."""
-    x = fbank if isinstance(fbank, torch.Tensor) else None
-    total = len(fbank)
     need = int(round(frames * FBANK_FRAMES_PER_SECOND / fps))
     out = []
-    for i in range(0, total, batch_size):
-        part = x[i: i + batch_size] if x is not None else torch.from_numpy(np.asarray(fbank[i: i + batch_size], np.float32))
-        part = part.float()
+    for i in range(0, len(fbank), batch_size):
+        part = fbank[i: i + batch_size]  # memory-mapped windows are read a batch at a time
+        part = part.float() if isinstance(part, torch.Tensor) else torch.from_numpy(np.asarray(part, np.float32))
         if part.dim() != 3:
             raise ValueError(f"timing_stream expects fbank windows [W, N, n_mels], got {tuple(part.shape)}")
         part = part[:, :need]

@@ -270,7 +270,7 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
             r = rows.get(name, {}).get("rhythm")
             if r is not None:
                 checks[f"rhythm: {name}, |gain| within {noise:g} spreads of 0"] = {
-                    "value": abs(r["gain"]) / r["spread"] if r["spread"] > 0 else (np.inf if r["gain"] else 0.0),
+                    "value": abs(r["gain_over_spread"]),
                     "threshold": noise, "pass": bool(within_noise(r, noise))}
         if "rhythm" in ours:
             check("rhythm: gain / the ground truth's gain >= 0.6", ours["rhythm"]["gain"] / g["gain"], 0.6)
