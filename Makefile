@@ -15,7 +15,7 @@ CLIPS := src/emogesture/assets/demo
 DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \
 	$(DEMO_DIR)/talk_emotion-angry_seed0_0.mp4 $(DEMO_DIR)/talk_style-angry_seed0_0.mp4
 
-.PHONY: demo test model setup venv lint clean apt-demo apt-test
+.PHONY: demo test model bench setup venv lint clean apt-demo apt-test
 
 demo: apt-demo $(VENV)/.installed $(DEMO_FILES)
 	@echo; echo "demo animations (npz for the SMPL-X add-on, bvh for Blender/Unity/Maya, mp4 to watch):"
@@ -36,6 +36,10 @@ test: apt-test $(VENV)/.installed
 
 model: apt-test $(VENV)/.installed
 	bash experiments/bundled_model.sh
+
+# speed and memory against this machine's floor (bench/README.md); writes bench/results/cpu.{json,md}
+bench: apt-test $(VENV)/.installed
+	$(PY) bench/all.py $(BENCH_ARGS)
 
 setup: apt-test $(VENV)/.installed
 

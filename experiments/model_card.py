@@ -124,7 +124,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 - **The strokes do not yet fall on the syllables.** The gestures' emotion and energy come
   from the speech, 10 s at a time, but within a window the strokes are not timed by the speech: the
   rhythm gain (how much better the arms' speed follows the speech's onsets than mismatched audio's)
-  is within noise of zero for this model, against 37 spreads for the corpus's own motion
+  is within noise of zero for this model, against about 30 spreads for the corpus's own motion (val texts)
   (`experiments/README.md`, "Rhythm").
 - **Motion.** The gestures are those of a procedural corpus: upper body only (legs, fingers, face
   stay at rest); the root does not travel. Since corpus version 3 the training motion turns at speeds within

@@ -188,3 +188,15 @@ def test_bad_input_is_one_line_and_leaves_nothing(tmp_path):
         assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir()), args
     assert (tmp_path / "taken" / "angry_seed0_0.npz").read_bytes() == b"the user's file"
     assert not list(tmp_path.glob("**/.*.tmp"))
+
+
+def test_bf16_autocast_drift_of_the_bundled_model(pipe, clip30):
+    """bf16 (what ``--precision auto`` picks on CPUs with native bf16, and on GPUs) stays within a
+    stated tolerance of float32: joints 2 mm on average, 20 mm at most (one seam candidate, so no
+    discrete choice can differ)."""
+    bf16 = GesturePipeline.from_run(precision="bf16")
+    wave = pipe.load_speech(clip30)
+    a = joints_of(pipe.generate(wave, seed=2, seam_candidates=1)[0])
+    b = joints_of(bf16.generate(wave, seed=2, seam_candidates=1)[0])
+    mm = np.linalg.norm(a - b, axis=-1) * 1000
+    assert 0 < mm.mean() < 2 and mm.max() < 20, (mm.mean(), mm.max())

@@ -279,3 +279,28 @@ def test_low_frequency_path_adds_dct_analysis_and_synthesis():
     assert not torch.allclose(vae.encode(x, sample=False)[1], mu)
     with pytest.raises(ConfigError, match="low_frequency_path"):
         MotionVAEConfig(frames=30, low_frequency_path=31)
+
+
+def test_timing_stream_smoothing_removes_frame_jitter_before_the_decoder():
+    from emogesture.models.motion_vae import gaussian_smooth
+
+    x = torch.zeros(1, 60, 2)
+    x[0, 30, 0] = 1.0
+    y = gaussian_smooth(x, 2.0)
+    assert y.sum().item() == pytest.approx(1.0, abs=1e-5) and y[0, 30, 0] < 0.25 and y[0, :, 1].abs().max() == 0
+    torch.testing.assert_close(gaussian_smooth(torch.ones(1, 60, 2), 2.0), torch.ones(1, 60, 2))  # edges held
+    outs = {}
+    for sigma in (0.0, 2.0):
+        torch.manual_seed(0)
+        cfg = MotionVAEConfig(frames=60, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32,
+                              timing_features=2, timing_smoothing=sigma)
+        vae = MotionVAE(cfg).eval()
+        torch.nn.init.normal_(vae.timing_to_query.weight)  # zero at initialisation
+        slow = torch.sin(torch.linspace(0, 6, 60))[None, :, None].expand(1, 60, 2)
+        jitter = 0.5 * torch.randn(1, 60, 2, generator=torch.Generator().manual_seed(1))
+        z = torch.zeros(1, 32)
+        with torch.no_grad():
+            outs[sigma] = (vae.decode(z, timing=slow + jitter) - vae.decode(z, timing=slow)).abs().mean().item()
+    assert outs[2.0] < 0.75 * outs[0.0]  # (0.61 measured; without smoothing the two are equal)
+    with pytest.raises(ConfigError, match="timing_smoothing"):
+        MotionVAEConfig(timing_smoothing=-1)

@@ -56,9 +56,17 @@ def test_the_measure_depends_on_which_audio_goes_with_which_window():
 
 
 def test_arm_speed_envelope_and_window_helpers():
-    joints = np.zeros((2, 10, 55, 3))
-    joints[:, :, 20, 0] = np.arange(10) / 30.0  # the left wrist moves at 1 m/s
-    assert R.arm_speed(joints) == pytest.approx(np.full((2, 10), 1 / 6))
+    joints = np.zeros((2, 40, 55, 3))
+    joints[:, :, 20, 0] = np.arange(40) / 30.0  # the left wrist moves at 1 m/s
+    assert R.arm_speed(joints, position_smooth_s=0) == pytest.approx(np.full((2, 40), 1 / 6))
+    assert R.arm_speed(joints)[:, 10:30] == pytest.approx(np.full((2, 20), 1 / 6))  # the low-pass keeps steady motion
+    # frame-to-frame jitter is not a gesture: the low-pass removes nearly all of its speed, a 0.4-s stroke keeps most
+    t = np.arange(90)
+    jitter, stroke = np.zeros((90, 55, 3)), np.zeros((90, 55, 3))
+    jitter[:, 20, 0] = 0.01 * np.random.default_rng(0).normal(size=90)
+    stroke[:, 20, 0] = 0.1 * np.exp(-0.5 * ((t - 45) / 6) ** 2)
+    assert R.arm_speed(jitter).mean() < 0.25 * R.arm_speed(jitter, position_smooth_s=0).mean()
+    assert R.arm_speed(stroke).max() > 0.8 * R.arm_speed(stroke, position_smooth_s=0).max()
     env = R.envelope_at_frames(np.arange(4.0), 16000, 3, fps=30, hop_length=512)  # values at 32-ms hops
     assert env == pytest.approx([0, 1 / 30 / 0.032, 2 / 30 / 0.032])
     takes, starts = R.consecutive_windows({"a": 650, "b": 299}, 300)

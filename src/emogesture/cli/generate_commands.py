@@ -33,6 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
     p.add_argument("--seam-candidates", type=int, default=4,
                    help="samples drawn per window, one kept per window so the worst seam moves least (default 4; 1 = off)")
+    p.add_argument("--device", default="auto", help="auto (a CUDA GPU when visible, else cpu), cpu, cuda or cuda:N")
+    p.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"],
+                   help="auto (default): bf16 autocast where bf16 is native (GPU, CPU with avx512_bf16/AMX), "
+                        "else fp32; fp32: the exact path")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run_generate)
@@ -68,8 +72,9 @@ def run_generate(args: argparse.Namespace) -> int:
     from emogesture.errors import EmogestureError
     from emogesture.export import export_paths, export_sequence, parse_formats
     from emogesture.fileio import atomic_output, check_output
-    from emogesture.pipeline.generate import EditRequest, GesturePipeline, output_stem
+    from emogesture.pipeline.generate import EditRequest, GesturePipeline, candidates_drawn, output_stem
     from emogesture.pipeline.perception import auto_emotion, perception_of
+    from emogesture.runtime import resolve_device
 
     formats = parse_formats(args.format)
     mode, label = _emotion_request(args)
@@ -86,7 +91,8 @@ def run_generate(args: argparse.Namespace) -> int:
         raise EmogestureError(f"{args.out}: is a file; --out must be a folder")
     show = not args.quiet and sys.stderr.isatty()
 
-    pipe = GesturePipeline.from_run(args.model, args.speech_model)
+    device = resolve_device(args.device)
+    pipe = GesturePipeline.from_run(args.model, args.speech_model, device=device, precision=args.precision)
     wave = pipe.load_speech(args.speech)
     edit, tag = None, ""
     edit_audio = {}
@@ -126,7 +132,8 @@ def run_generate(args: argparse.Namespace) -> int:
         print(p.summary(mode))
 
     windows = len(encoded[1])
-    with tqdm(total=windows * args.seam_candidates * args.samples, desc="drawing windows", unit="window",
+    with tqdm(total=windows * candidates_drawn(windows, args.seam_candidates) * args.samples, desc="drawing windows",
+              unit="window",
               disable=not show, leave=False) as bar:
         sequences = pipe.generate(wave, edit=edit, seed=args.seed, samples=args.samples,
                                   seam_candidates=args.seam_candidates, emotion_mode=mode, encoded=encoded,

@@ -16,8 +16,10 @@ def _engine_args(p: argparse.ArgumentParser) -> None:
                    help="override a setting, e.g. --set lr=1e-4 --set model.encoder.depth=4")
     p.add_argument("--steps", type=int, default=1000, help="total optimisation steps (default 1000)")
     p.add_argument("--devices", type=int, default=1, help="processes / GPUs; >1 uses DDP")
-    p.add_argument("--accelerator", default="cpu", choices=["cpu", "gpu", "auto"], help="default cpu")
-    p.add_argument("--precision", default="32-true", help="32-true (default) or bf16-mixed")
+    p.add_argument("--device", "--accelerator", dest="accelerator", default="cpu",
+                   choices=["cpu", "cuda", "gpu", "auto"], help="cpu (default), cuda (= gpu) or auto")
+    p.add_argument("--precision", default="32-true", choices=["32-true", "fp32", "bf16-mixed", "bf16"],
+                   help="32-true (= fp32, default) or bf16-mixed (= bf16: autocast, float32 weights)")
     p.add_argument("--checkpoint-every", type=int, default=200, help="steps between checkpoints (default 200)")
     p.add_argument("--log-every", type=int, default=20, help="steps between logged losses (default 20)")
     p.add_argument("--seed", type=int, default=0, help="seed of weights, sampling and augmentation")
@@ -138,11 +140,20 @@ def run_bundle(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, command: str, config, build, what: str, more: dict | None = None) -> int:
     from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
 
-    settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=args.accelerator,
-                           precision=args.precision, checkpoint_every=args.checkpoint_every,
+    precision = {"fp32": "32-true", "bf16": "bf16-mixed"}.get(args.precision, args.precision)
+    accelerator = {"cuda": "gpu"}.get(args.accelerator, args.accelerator)
+    if accelerator == "gpu":
+        import torch
+
+        from emogesture.errors import EmogestureError
+
+        if not torch.cuda.is_available():
+            raise EmogestureError(f"--device {args.accelerator}: no CUDA GPU is visible to torch; use --device cpu")
+    settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=accelerator,
+                           precision=precision, checkpoint_every=args.checkpoint_every,
                            log_every=args.log_every, progress=not args.quiet, seed=args.seed)
     blob = {"command": command, "config": to_dict(config), "data": str(args.data.resolve()),
-            "seed": args.seed, "precision": args.precision, **(more or {})}
+            "seed": args.seed, "precision": precision, **(more or {})}
     resume = check_run_dir(args.out, blob, args.overwrite)
     data, module, export = build(config, args.data, args.seed)
     trainer = make_trainer(args.out, settings, lambda m: export(m, args.out))

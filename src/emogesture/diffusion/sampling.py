@@ -103,7 +103,7 @@ def ddim_sample(
         denoiser: ``denoiser(z_t [B, D], t [B], conditions) -> [B, D]``, the scheduler's prediction
             (ε for the paper's ``prediction_type="epsilon"``; e.g. a ``LatentDenoiser``;
             its train/eval mode is the caller's business — use eval mode for reproducible samples).
-        scheduler: a diffusers ``DDIMScheduler`` (see :func:`make_ddim_scheduler`); its ``timesteps``
+        scheduler: a DDIM scheduler (:func:`make_ddim_scheduler`: ours or diffusers'); its ``timesteps``
             are used as set, unless ``num_inference_steps`` is given (then ``set_timesteps`` is called).
         conditions: the condition latents, each ``[B, C]`` (``(c, e, s)`` or ``(m,)``).
         generator: one generator or ``B`` generators (batch-independent results; see the module doc).

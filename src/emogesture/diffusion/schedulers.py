@@ -3,7 +3,8 @@
 Every scheduler field is passed to ``diffusers`` explicitly, because its defaults differ from the
 paper's setting (DDIM: ``clip_sample=True``, ``set_alpha_to_one=True``, ``steps_offset=0``; the
 authors' inference silently clipped x̂0 to [-1, 1] through that default). ``diffusers`` is imported
-only inside the factory functions (it is slow to import and not needed by the rest of the package).
+only inside the factory functions (it is slow to import and not needed by the rest of the package);
+sampling uses :class:`emogesture.diffusion.ddim.DDIMSampler`, the same DDIM arithmetic without it.
 """
 
 from __future__ import annotations
@@ -105,10 +106,20 @@ def make_ddpm_scheduler(cfg: DiffusionConfig | None = None) -> Any:
     return _import_diffusers().DDPMScheduler(variance_type=cfg.variance_type, **_common(cfg))
 
 
-def make_ddim_scheduler(cfg: DiffusionConfig | None = None) -> Any:
-    """A ``diffusers.DDIMScheduler`` for sampling from ``cfg``, with its timesteps already set to
-    ``cfg.num_inference_steps`` (call ``set_timesteps`` again to change the count)."""
+def make_ddim_scheduler(cfg: DiffusionConfig | None = None, backend: str = "emogesture") -> Any:
+    """A DDIM scheduler for sampling from ``cfg``, with its timesteps already set to
+    ``cfg.num_inference_steps`` (call ``set_timesteps`` again to change the count).
+
+    ``backend``: ``emogesture`` (default) is :class:`emogesture.diffusion.ddim.DDIMSampler`, the same
+    arithmetic as diffusers' without its import cost; ``diffusers`` is ``diffusers.DDIMScheduler``."""
     cfg = cfg or DiffusionConfig()
-    scheduler = _import_diffusers().DDIMScheduler(set_alpha_to_one=cfg.set_alpha_to_one, **_common(cfg))
+    if backend == "emogesture":
+        from emogesture.diffusion.ddim import DDIMSampler
+
+        scheduler = DDIMSampler(cfg)
+    elif backend == "diffusers":
+        scheduler = _import_diffusers().DDIMScheduler(set_alpha_to_one=cfg.set_alpha_to_one, **_common(cfg))
+    else:
+        raise ConfigError(f"DDIM backend must be emogesture or diffusers, got {backend!r}")
     scheduler.set_timesteps(cfg.num_inference_steps)
     return scheduler

@@ -4,7 +4,11 @@ The measure, in pure functions of numpy arrays:
 
 1. the audio's onset-strength envelope (:func:`emogesture.audio.onset_strength`, one value per 512-sample
    hop) read at every 1/30-s motion frame, and the mean speed of the arm joints (shoulders, elbows,
-   wrists) per frame, each smoothed by a Gaussian of ``smooth_s``;
+   wrists) per frame, each smoothed by a Gaussian of ``smooth_s``. The joint positions are first
+   low-passed by a Gaussian of ``position_smooth_s`` (two frames): frame-to-frame jitter whose size
+   follows the speech's loudness is not a gesture, yet its speed would follow the onsets (a model that
+   read the raw onset strength frame by frame scored above the ground truth that way, with six times
+   its jerk); strokes, which last a few tenths of a second, pass;
 2. their Pearson correlation inside each window, with the motion lagging the audio by ``-max_lag_s`` to
    ``+max_lag_s``, averaged over the windows: a correlation curve over lags (:func:`lagged_correlation`);
 3. the **rhythm score**: the curve's maximum (and its lag);
@@ -32,6 +36,7 @@ RHYTHM_CONSTANTS: dict = {
     "fps": 30.0,
     "onset_hop_length": 512,
     "smooth_s": 0.1,
+    "position_smooth_s": 2 / 30,
     "max_lag_s": 0.5,
     "arm_joints": ARM_JOINTS,
     "other_window_draws": 4,
@@ -55,13 +60,17 @@ def envelope_at_frames(envelope: np.ndarray, sample_rate: int, num_frames: int, 
     return np.interp(np.arange(num_frames) / float(fps), times, env)
 
 
-def arm_speed(joints: np.ndarray, fps: float = _C["fps"], arm_joints: Sequence[int] = _C["arm_joints"]) -> np.ndarray:
+def arm_speed(joints: np.ndarray, fps: float = _C["fps"], arm_joints: Sequence[int] = _C["arm_joints"],
+              position_smooth_s: float = _C["position_smooth_s"]) -> np.ndarray:
     """Mean speed (m/s) of the arm joints per frame: ``joints [..., T, J, 3] -> [..., T]``.
 
-    Central differences inside, one-sided at the two ends; needs ``T >= 2``."""
+    The positions are low-passed first (Gaussian, σ ``position_smooth_s`` seconds; 0 = raw); central
+    differences inside, one-sided at the two ends; needs ``T >= 2``."""
     x = np.asarray(joints, np.float64)[..., list(arm_joints), :]
     if x.shape[-3] < 2:
         raise ValueError(f"arm_speed needs at least 2 frames, got joints of shape {np.shape(joints)}")
+    if position_smooth_s > 0:
+        x = gaussian_filter1d(x, position_smooth_s * fps, axis=-3, mode="nearest")
     velocity = np.gradient(x, axis=-3) * float(fps)
     return np.linalg.norm(velocity, axis=-1).mean(axis=-1)
 

@@ -58,6 +58,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from emogesture.errors import ConfigError
@@ -80,6 +81,9 @@ class MotionVAEConfig:
     latent_tokens: int = 1
     low_frequency_path: int = 0
     timing_features: int = 0
+    #: σ, in frames, of a Gaussian smoothing of the timing stream before the decoder reads it (0 = none):
+    #: the fbank's frame-to-frame onset strength is jittery, and read raw it comes out as jitter.
+    timing_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token, self.latent_tokens) < 1:
@@ -91,8 +95,9 @@ class MotionVAEConfig:
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
-        if self.timing_features < 0:
-            raise ConfigError(f"motion VAE: timing_features must be ≥ 0, got {self.timing_features}")
+        if self.timing_features < 0 or self.timing_smoothing < 0:
+            raise ConfigError(f"motion VAE: timing_features and timing_smoothing must be ≥ 0, got "
+                              f"{self.timing_features}, {self.timing_smoothing}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -119,6 +124,17 @@ class MotionVAEConfig:
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
                        low_frequency_path=min(48, frames))
         raise ConfigError(f"unknown motion VAE preset {name!r}; known: paper, tiny")
+
+
+def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``x [B, T, F]`` smoothed along T by a Gaussian of ``sigma`` frames (truncated at 3σ; the edges
+    repeat the first and last frame)."""
+    r = max(1, int(3 * sigma + 0.5))
+    offsets = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
+    kernel = torch.exp(-0.5 * (offsets / sigma) ** 2)
+    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
+    y = F.pad(x.transpose(1, 2), (r, r), mode="replicate")
+    return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
 
 
 def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
@@ -238,7 +254,10 @@ class MotionVAE(nn.Module):
                 or timing.shape[1] < n * k:
             got = None if timing is None else tuple(timing.shape)
             raise ValueError(f"this motion decoder reads a timing stream [B={b}, >={n * k}, {c.timing_features}], got {got}")
-        return timing[:, : n * k].reshape(b, n, k * c.timing_features)
+        timing = timing[:, : n * k]
+        if c.timing_smoothing > 0:
+            timing = gaussian_smooth(timing, c.timing_smoothing)
+        return timing.reshape(b, n, k * c.timing_features)
 
     def forward(
         self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True,

@@ -51,6 +51,8 @@ class SkeletonBody(torch.nn.Module):
             parent_slots = torch.tensor([slot[PARENTS[j]] for j in levels[d]])
             self.register_buffer(f"_parents_{d}", parent_slots, persistent=False)
         order = [j for level in levels for j in level]
+        self._level_sizes = [len(level) for level in levels]
+        self.register_buffer("_order", torch.tensor(order), persistent=False)
         self.register_buffer("_unsort", torch.tensor(np.argsort(order)), persistent=False)
 
     def forward(self, poses: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
@@ -73,7 +75,10 @@ class SkeletonBody(torch.nn.Module):
         root = offsets[0].expand(local.shape[0], 3)
         if trans is not None:
             root = root + trans.reshape(-1, 3).to(local.dtype)
-        world_rot = [local[:, :1]]
+        # one gather into depth order, then each depth is a contiguous part (the backward of indexing
+        # every depth out of ``local`` would write a full-size zero gradient per depth)
+        by_depth = local.index_select(1, self._order).split(self._level_sizes, dim=1)
+        world_rot = [by_depth[0]]
         world_pos = [root[:, None]]
         for d in range(1, self._num_levels):
             joints = getattr(self, f"_joints_{d}")
@@ -81,7 +86,7 @@ class SkeletonBody(torch.nn.Module):
             parent_rot = world_rot[-1][:, parents]
             bone = torch.einsum("nkij,kj->nki", parent_rot, offsets[joints])
             world_pos.append(world_pos[-1][:, parents] + bone)
-            world_rot.append(parent_rot @ local[:, joints])
+            world_rot.append(parent_rot @ by_depth[d])
         positions = torch.cat(world_pos, dim=1)[:, self._unsort]
         return positions.reshape(*lead, NUM_JOINTS, 3)
 

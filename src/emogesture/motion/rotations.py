@@ -63,7 +63,10 @@ def rot6d_to_matrix(rot6d: torch.Tensor) -> torch.Tensor:
     b1 = a1 / a1.norm(dim=-1, keepdim=True).clamp_min(_EPS)
     b2 = a2 - (b1 * a2).sum(dim=-1, keepdim=True) * b1
     b2 = b2 / b2.norm(dim=-1, keepdim=True).clamp_min(_EPS)
-    b3 = torch.linalg.cross(b1, b2, dim=-1)
+    # b1 × b2 written out: torch.linalg.cross is several times slower on CPU for many small vectors
+    x1, y1, z1 = b1.unbind(-1)
+    x2, y2, z2 = b2.unbind(-1)
+    b3 = torch.stack([y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2], dim=-1)
     return torch.stack([b1, b2, b3], dim=-1)
 
 

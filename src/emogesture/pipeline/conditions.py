@@ -24,6 +24,7 @@ from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.speech import SpeechLatentEncoder
+from emogesture.runtime import autocast
 
 
 def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
@@ -81,13 +82,14 @@ def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
     return (np.asarray(gesture.extra["motion_mean"], np.float32), np.asarray(gesture.extra["motion_std"], np.float32))
 
 
-@torch.no_grad()
+@torch.inference_mode()
 def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int], batch_size: int = 64,
                    num_inference_steps: int | None = None, residual: bool = True,
                    progress: Callable[[int], None] | None = None,
-                   residual_weights: np.ndarray | None = None) -> torch.Tensor:
+                   residual_weights: np.ndarray | None = None, precision: str = "fp32") -> torch.Tensor:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> sampled motion latents ``[W, 256]``
-    (on the model's device); see :func:`generate_from_conditions`."""
+    float32 (on the model's device); see :func:`generate_from_conditions`. ``precision="bf16"`` runs
+    the denoiser under bf16 autocast (the scheduler's arithmetic stays float32)."""
     model = gesture.model.eval()
     device = next(model.parameters()).device
     cfg = gesture.config
@@ -103,7 +105,10 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         if model.audio_ae is not None:
             conds = [model.audio_ae(conds[0])[0]]
         generators = make_generators(seeds[i : i + batch_size])
-        z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps, eta=cfg.diffusion.eta)
+        with autocast(precision, device):
+            z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps,
+                            eta=cfg.diffusion.eta)
+        z = z.float()
         if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
             scale = cfg.diffusion.residual_scale
             if residual_weights is not None:
@@ -128,11 +133,12 @@ def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64
     return torch.cat(out)
 
 
-@torch.no_grad()
+@torch.inference_mode()
 def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64,
-                   timing: np.ndarray | None = None) -> np.ndarray:
-    """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]``; ``timing [W, T, F]``: the
-    windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``)."""
+                   timing: np.ndarray | None = None, precision: str = "fp32") -> np.ndarray:
+    """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
+    the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
+    ``precision="bf16"``: the decoder runs under bf16 autocast."""
     model = gesture.model.eval()
     mean, std = _motion_statistics(gesture)
     reads = gesture.config.vae.timing_features > 0
@@ -140,14 +146,15 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     for i in range(0, len(z), batch_size):
         stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
                   if reads and timing is not None else None)
-        out.append(model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream).cpu().numpy())
+        with autocast(precision, z.device):
+            out.append(model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream).float().cpu().numpy())
     return np.concatenate(out) * std + mean
 
 
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
                              batch_size: int = 64, num_inference_steps: int | None = None,
                              residual: bool = True, progress: Callable[[int], None] | None = None,
-                             residual_weights: np.ndarray | None = None) -> np.ndarray:
+                             residual_weights: np.ndarray | None = None, precision: str = "fp32") -> np.ndarray:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
@@ -156,9 +163,9 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
     noise (``diffusion.residual_scale``, times ``residual_weights [W]`` when given) unless ``residual=False``.
     """
     z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress,
-                       residual_weights)
+                       residual_weights, precision)
     timing = conditions[-1] if gesture.config.hears_timing else None
-    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size, timing)
+    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size, timing, precision)
 
 
 def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64,

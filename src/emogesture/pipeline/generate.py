@@ -36,12 +36,16 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
-from emogesture.pipeline.conditions import generate_from_conditions
+from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
+from emogesture.runtime import StageTimes, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
 
 WINDOW_SECONDS = 10.0
+#: Draws denoised together: each DDIM step is one batched denoiser call, so larger batches spread its
+#: fixed cost; every draw has its own generator, so the result does not depend on the batch.
+SAMPLING_BATCH = 256
 #: Share of a window's frames with sound (:func:`emogesture.audio.window_activity`) from which its
 #: residual noise is added in full; below it the noise shrinks linearly to none for silence.
 FULL_RESIDUAL_ACTIVITY = 0.5
@@ -154,14 +158,23 @@ def stitch(windows: np.ndarray, starts: list[int], num_frames: int) -> np.ndarra
     return out.astype(np.float32)
 
 
-class GesturePipeline:
-    """A trained gesture model and its speech model, ready to animate speech."""
+def candidates_drawn(windows: int, seam_candidates: int) -> int:
+    """Candidates drawn per window: ``seam_candidates``, or 1 when a single window has no seam to
+    choose for (candidate 0 would be kept: the same output, a quarter of the sampling)."""
+    return seam_candidates if windows > 1 else 1
 
-    def __init__(self, gesture: LoadedModel, speech: SpeechLatentEncoder | None, device: str = "cpu") -> None:
+
+class GesturePipeline:
+    """A trained gesture model and its speech model, ready to animate speech. ``precision``: ``fp32``,
+    ``bf16`` (autocast of the denoiser and the motion decoder) or ``auto`` (see :mod:`emogesture.runtime`)."""
+
+    def __init__(self, gesture: LoadedModel, speech: SpeechLatentEncoder | None, device: str = "cpu",
+                 precision: str = "fp32") -> None:
         self.loaded = gesture
         self.model = gesture.model.to(device).eval()
         self.speech = speech
         self.device = device
+        self.precision = resolve_precision(precision, device)
         extra = gesture.extra
         if extra.get("variant") == "no_audio":
             raise EmogestureError(f"{gesture.path}: the no_audio ablation has no speech latents to edit or generate "
@@ -174,18 +187,18 @@ class GesturePipeline:
 
     @classmethod
     def from_run(cls, run: str | PathLike[str] | None = None, speech_run: str | PathLike[str] | None = None,
-                 device: str = "cpu") -> "GesturePipeline":
+                 device: str = "cpu", precision: str = "fp32") -> "GesturePipeline":
         """A gesture model's run folder (or model JSON; None = the bundled model) and its speech model
         (default: the one the gesture model names, a path relative to the gesture model's folder or absolute)."""
         gesture = load_model(run if run is not None else bundled_model_file("gesture"), "gesture", device=device)
         if speech_run is not None:
-            speech = SpeechLatentEncoder.from_run(speech_run, device)
+            speech = SpeechLatentEncoder.from_run(speech_run, device, precision)
         else:
-            speech = SpeechLatentEncoder.of_gesture_model(gesture, device)
+            speech = SpeechLatentEncoder.of_gesture_model(gesture, device, precision)
         want = gesture.extra.get("speech_weights_sha256")
         if want and speech.loaded.meta["weights_sha256"] != want:
             raise InputFileError(speech.loaded.path, "is not the speech model this gesture model was trained with")
-        return cls(gesture, speech, device)
+        return cls(gesture, speech, device, precision)
 
     def load_speech(self, path: str | PathLike[str]) -> np.ndarray:
         """A speech file -> 16 kHz waveform ``[N]``; at least 1 s long. Silence is allowed (a calm
@@ -201,10 +214,10 @@ class GesturePipeline:
             joints = self.body.forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), self.spec)
         return largest_joint_jumps(joints.numpy())
 
-    def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0, progress: Callable[[int], None] | None = None
-               ) -> tuple[EncodedWindows, list[float]]:
+    def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0, progress: Callable[[int], None] | None = None,
+               times: StageTimes | None = None) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s)."""
-        return self.speech.encode(waveform, 16000, hop_seconds, progress)
+        return self.speech.encode(waveform, 16000, hop_seconds, progress, times)
 
     def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str) -> PerceivedEmotion:
         """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""
@@ -244,47 +257,61 @@ class GesturePipeline:
 
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],
                          progress: Callable[[int], None] | None = None,
-                         residual_weights: np.ndarray | None = None) -> np.ndarray:
+                         residual_weights: np.ndarray | None = None, times: StageTimes | None = None
+                         ) -> np.ndarray:
         """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``
         (``residual_weights [W]`` scale each window's residual noise)."""
-        return generate_from_conditions(self.loaded, conditions, seeds, progress=progress,
-                                        residual_weights=residual_weights)
+        timing = conditions[-1] if self.loaded.config.hears_timing else None
+        with maybe_stage(times, "sampling"):
+            z = sample_latents(self.loaded, conditions, seeds, batch_size=SAMPLING_BATCH, progress=progress,
+                               residual_weights=residual_weights, precision=self.precision)
+        with maybe_stage(times, "motion decoder"):
+            return decode_latents(self.loaded, z, self.loaded.config.vae.frames, timing=timing,
+                                  precision=self.precision)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
                  hop_seconds: float = 8.0, seam_candidates: int = 4, emotion_mode: str = "auto",
                  encoded: tuple[EncodedWindows, list[float]] | None = None,
-                 progress: Callable[[int], None] | None = None) -> list[SMPLXSequence]:
+                 progress: Callable[[int], None] | None = None, times: StageTimes | None = None
+                 ) -> list[SMPLXSequence]:
         """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
 
         ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
         worst seam moves least (see the module docstring); 1 = every window independent.
         ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
         hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
+        ``times``: wall seconds per stage are added to it (``fbank``, ``speech encoders``, ``sampling``,
+        ``motion decoder``, ``seams and poses``).
+
+        Every sample's every candidate of every window is drawn in one batched pass (each from its own
+        generator, so the result does not depend on how many are drawn together).
         """
         if seam_candidates < 1:
             raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
-        enc, starts_s = encoded if encoded is not None else self.encode(waveform, hop_seconds)
+        enc, starts_s = encoded if encoded is not None else self.encode(waveform, hop_seconds, times=times)
         conds = self.conditions(enc, edit, emotion_mode)
         num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
-        n, k_cand = len(starts), seam_candidates
-        pairs = [(i, c) for i in range(n) for c in range(k_cand)]  # (window, candidate) draws
-        rows = np.array([i for i, _ in pairs])
+        n = len(starts)
+        k_cand = candidates_drawn(n, seam_candidates)
+        draws = [(k, i, c) for k in range(samples) for i in range(n) for c in range(k_cand)]
+        rows = np.array([i for _, i, _ in draws])
         picked = [c[rows] for c in conds]
         # residual noise stands for strokes the audio leaves open: none without sound, in full from half
         # a window of it (every window of the corpus's speech has at least 0.6)
         weights = np.clip(window_activity(waveform, 16000, starts_s) / FULL_RESIDUAL_ACTIVITY, 0.0, 1.0)[rows]
+        # candidate 0 of window i keeps the seed it has with one candidate
+        seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
+                 for k, i, c in draws]
+        drawn = self.generate_windows(picked, seeds, progress, weights, times)
+        drawn = drawn.reshape(samples, n, k_cand, *drawn.shape[1:])
         out = []
-        for k in range(samples):
-            # candidate 0 of window i keeps the seed it has with one candidate
-            seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
-                     for i, c in pairs]
-            drawn = self.generate_windows(picked, seeds, progress, weights)
-            candidates = drawn.reshape(n, k_cand, *drawn.shape[1:])
-            feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
-            poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
-            trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
-            out.append(SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps))
+        with maybe_stage(times, "seams and poses"):
+            for candidates in drawn:
+                feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
+                poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
+                trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
+                out.append(SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps))
         return out
 
     def encode_file_latents(self, path: str | PathLike[str]) -> EncodedWindows:

@@ -17,6 +17,7 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
 from emogesture.models.speech import AudioLatents
+from emogesture.runtime import StageTimes, autocast, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
 
@@ -42,12 +43,14 @@ class EncodedWindows:
 
 
 class SpeechLatentEncoder:
-    """A frozen speech model in eval mode: deterministic, batched, no gradients."""
+    """A frozen speech model in eval mode: deterministic, batched, no gradients; ``precision`` ``fp32``,
+    ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`)."""
 
-    def __init__(self, loaded: LoadedModel, device: str = "cpu") -> None:
+    def __init__(self, loaded: LoadedModel, device: str = "cpu", precision: str = "fp32") -> None:
         self.loaded = loaded
         self.model = loaded.model.to(device).eval()
         self.device = device
+        self.precision = resolve_precision(precision, device)
         self.fbank_mean = float(loaded.extra["fbank_mean"])
         self.fbank_std = float(loaded.extra["fbank_std"])
         prep = loaded.extra.get("prepare_config", {})
@@ -55,11 +58,12 @@ class SpeechLatentEncoder:
         self.window_frames = loaded.config.encoder.input_frames
 
     @classmethod
-    def from_run(cls, path: str | PathLike[str], device: str = "cpu") -> "SpeechLatentEncoder":
-        return cls(load_model(path, "speech", device=device), device)
+    def from_run(cls, path: str | PathLike[str], device: str = "cpu", precision: str = "fp32") -> "SpeechLatentEncoder":
+        return cls(load_model(path, "speech", device=device), device, precision)
 
     @classmethod
-    def of_gesture_model(cls, gesture: LoadedModel, device: str = "cpu") -> "SpeechLatentEncoder":
+    def of_gesture_model(cls, gesture: LoadedModel, device: str = "cpu", precision: str = "fp32"
+                         ) -> "SpeechLatentEncoder":
         """The speech model a gesture model names: an absolute path, or one relative to the gesture
         model's folder (as in the bundled model)."""
         from emogesture.errors import InputFileError
@@ -67,13 +71,13 @@ class SpeechLatentEncoder:
         name = gesture.extra.get("speech_model")
         if name is None:
             raise InputFileError(gesture.path, "names no speech model; pass one")
-        return cls.from_run(Path(gesture.path).parent / name, device)
+        return cls.from_run(Path(gesture.path).parent / name, device, precision)
 
     @property
     def speakers(self) -> list[int]:
         return list(self.loaded.extra["speakers"])
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None,
                        progress: Callable[[int], None] | None = None) -> EncodedWindows:
         """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
@@ -87,7 +91,8 @@ class SpeechLatentEncoder:
             if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
                 raw = x * (2 * renormalise[1]) + renormalise[0]
                 x = (raw - self.fbank_mean) / (2 * self.fbank_std)
-            enc = self.model.encode(x)
+            with autocast(self.precision, self.device):
+                enc = self.model.encode(x)
             for store, value in zip(parts, enc):
                 store.append(value.float().cpu().numpy())
             if progress is not None:
@@ -95,17 +100,22 @@ class SpeechLatentEncoder:
         return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in parts))
 
     def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0,
-               progress: Callable[[int], None] | None = None) -> tuple[EncodedWindows, list[float]]:
-        """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s)."""
+               progress: Callable[[int], None] | None = None, times: StageTimes | None = None
+               ) -> tuple[EncodedWindows, list[float]]:
+        """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).
+        ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
-        fb = kaldi_fbank(waveform, self.fbank_config)
-        fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
-        starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
-        frames = [int(round(s * FBANK_RATE)) for s in starts]
-        windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
-        enc = self.encode_windows(windows, progress=progress)
-        enc.timing = timing_stream(windows)
+        with maybe_stage(times, "fbank"):
+            fb = kaldi_fbank(waveform, self.fbank_config)
+            fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
+            starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
+            frames = [int(round(s * FBANK_RATE)) for s in starts]
+            windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
+            timing = timing_stream(windows)
+        with maybe_stage(times, "speech encoders"):
+            enc = self.encode_windows(windows, progress=progress)
+        enc.timing = timing
         return enc, starts
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
@@ -117,6 +127,8 @@ class SpeechLatentEncoder:
         """
         windows = cache.split(split)
         key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}_{array_digest(windows.fbank)}"
+        if self.precision != "fp32":
+            key += f"_{self.precision}"
         path = Path(self.loaded.path).parent / "latents" / f"{key}.npz"
         if path.is_file():
             with np.load(path) as z:

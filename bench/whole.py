@@ -1,0 +1,136 @@
+"""Whole-process ``emogesture generate``: wall time and peak resident memory, per preset and audio length.
+
+Each run is a fresh process (start-up, imports and model loading included), writing npz only (the
+exports are timed by ``stages.py``): wall clock, and the child's peak resident memory (VmHWM).
+Also reported: the marginal real-time factor (extra seconds per extra second of audio, between the two
+longest clips), the scaling exponent between them (1 = linear), 4 samples against one, and an emotion
+edit (``--emotion-from`` another recording of the same length; ``--emotion LABEL``) against plain generation.
+
+Usage: python bench/whole.py [--preset tiny|paper] [--lengths 10,60,600] [--precision auto|fp32|bf16]
+                             [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import fixtures  # noqa: E402
+import machine  # noqa: E402
+
+EG = [sys.executable, "-m", "emogesture.cli.main"]
+
+
+def peak_rss_kib(pid: int) -> int | None:
+    """The high-water mark of a running process's resident memory (``VmHWM``, KiB), or None."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def timed(args: list[str]) -> tuple[float, float]:
+    """Run ``emogesture ARGS``: (wall seconds, peak RSS GiB); a failure stops the benchmark with its output.
+
+    The peak is the child's ``VmHWM``, read every 20 ms until it exits (``wait4``'s ``ru_maxrss`` would
+    count the benchmark's own memory, which the forked child holds until it execs)."""
+    t0 = time.perf_counter()
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(EG + args, stdout=out, stderr=err)
+        peak = 0
+        while proc.poll() is None:
+            hwm = peak_rss_kib(proc.pid)
+            # the first reads may still see the forked copy of this process, before exec
+            if hwm is not None and time.perf_counter() - t0 > 0.2:
+                peak = max(peak, hwm)
+            time.sleep(0.02)
+        wall = time.perf_counter() - t0
+        if proc.returncode:
+            out.seek(0)
+            err.seek(0)
+            sys.exit(f"emogesture {' '.join(args)} failed ({proc.returncode}):\n{out.read().decode()}\n"
+                     f"{err.read().decode()}")
+    return wall, peak / 2**20
+
+
+def run(preset: str, lengths: list[float], precision: str = "auto", device: str = "cpu",
+        ratio_repeats: int = 2) -> dict:
+    """``ratio_repeats``: runs per setting of the ratios (the best is kept)."""
+    work = Path(tempfile.mkdtemp(prefix="emogesture-bench-"))
+    model = fixtures.gesture_run(work, preset)
+    base = ["generate", "--model", str(model), "--format", "npz", "--overwrite", "--quiet",
+            "--precision", precision, "--device", device]
+    rows = []
+    for seconds in lengths:
+        speech = fixtures.speech_file(work, seconds)
+        wall, rss = timed([*base, str(speech), "-o", str(work / "out")])
+        rows.append({"seconds": seconds, "wall_s": round(wall, 2), "peak_rss_gib": round(rss, 3)})
+        print(f"{preset} {seconds:g} s: {wall:.2f} s wall, {rss:.2f} GiB peak", flush=True)
+    a, b = rows[-2], rows[-1]
+    marginal = (b["wall_s"] - a["wall_s"]) / (b["seconds"] - a["seconds"])
+    exponent = math.log(b["wall_s"] / a["wall_s"]) / math.log(b["seconds"] / a["seconds"])
+    # linearity: time per second of audio beyond start-up (the shortest clip's time) at both lengths
+    startup = rows[0]["wall_s"]
+    per_s = [(r["wall_s"] - startup) / (r["seconds"] - rows[0]["seconds"]) for r in (a, b)]
+    mid = fixtures.speech_file(work, lengths[1] if len(lengths) > 2 else lengths[0])
+    other = fixtures.speech_file(work, lengths[1] if len(lengths) > 2 else lengths[0])
+
+    def best(extra: list[str], name: str) -> float:  # the best of a few: single runs vary by ±10 % here
+        return min(timed([*base, str(mid), "-o", str(work / name), *extra])[0] for _ in range(ratio_repeats))
+
+    plain = best([], "plain")
+    four = best(["--samples", "4"], "four")
+    label = best(["--emotion", "happiness"], "label")
+    edit = best(["--emotion-from", str(other)], "edit")
+    mid_s = lengths[1] if len(lengths) > 2 else lengths[0]
+    return {"preset": preset, "precision": precision, "runs": rows,
+            "marginal_rtf": round(marginal, 4), "scaling_exponent": round(exponent, 3),
+            "seconds_per_audio_second": [round(x, 4) for x in per_s],
+            "linearity": round(per_s[1] / per_s[0], 3) if per_s[0] > 0 else None,
+            "clip_for_ratios_s": mid_s, "ratio_repeats": ratio_repeats, "one_sample_s": round(plain, 2), "four_samples_s": round(four, 2),
+            "four_over_one": round(four / plain, 3), "emotion_label_s": round(label, 2),
+            "emotion_label_over_plain": round(label / plain, 3), "emotion_from_s": round(edit, 2),
+            "emotion_from_over_plain": round(edit / plain, 3)}
+
+
+def table(result: dict) -> str:
+    lines = [f"**{result['preset']}** (precision {result['precision']}; whole process, npz only)\n",
+             "| audio | wall | peak RSS |", "|---|---|---|"]
+    lines += [f"| {r['seconds']:g} s | {r['wall_s']:.2f} s | {r['peak_rss_gib']:.2f} GiB |" for r in result["runs"]]
+    lines += ["", f"marginal RTF {result['marginal_rtf']}, scaling exponent {result['scaling_exponent']}, "
+              f"time per audio second beyond start-up {result['seconds_per_audio_second']} "
+              f"(ratio {result['linearity']}); on the {result['clip_for_ratios_s']:g}-s clip: 4 samples / 1 = "
+              f"{result['four_over_one']}, --emotion LABEL / plain = {result['emotion_label_over_plain']}, "
+              f"--emotion-from / plain = {result['emotion_from_over_plain']}"]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--preset", default="tiny", choices=["tiny", "paper"])
+    ap.add_argument("--lengths", default="10,60,600", help="seconds of audio, comma-separated (default 10,60,600)")
+    ap.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"])
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args()
+    lengths = [float(x) for x in args.lengths.split(",")]
+    result = {"machine": machine.describe(args.device), **run(args.preset, lengths, args.precision, args.device)}
+    print(table(result))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()

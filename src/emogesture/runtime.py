@@ -1,0 +1,105 @@
+"""How models run at inference: the device, the precision (float32, or bfloat16 autocast) and per-stage timing.
+
+``--precision auto`` (the default of ``emogesture generate``) takes bf16 autocast where bf16 matrix
+products are native — a GPU that supports bf16, or a CPU with ``avx512_bf16`` or AMX — and float32
+elsewhere (a CPU without them emulates bf16, slower than float32). ``fp32`` keeps the exact path.
+Under bf16 the matrix products of the audio encoders, the denoiser and the motion decoder run in
+bf16; their outputs are returned in float32. The drift this causes is measured by ``bench/``.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager, nullcontext
+from functools import lru_cache
+
+import torch
+
+from emogesture.errors import EmogestureError
+
+PRECISIONS = ("auto", "fp32", "bf16")
+DEVICES = ("auto", "cpu", "cuda")
+
+
+@lru_cache(maxsize=1)
+def _cpu_flags() -> frozenset[str]:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("flags"):
+                    return frozenset(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return frozenset()
+
+
+def native_bf16(device: str | torch.device) -> bool:
+    """True where bf16 matrix products run natively on ``device``."""
+    device = torch.device(device)
+    if device.type == "cuda":
+        return torch.cuda.is_available() and torch.cuda.is_bf16_supported()
+    return bool({"avx512_bf16", "amx_bf16"} & _cpu_flags())
+
+
+def resolve_device(name: str | None) -> str:
+    """``auto``/None -> ``cuda`` when a GPU is visible, else ``cpu``; ``cuda`` without one is an error."""
+    name = (name or "auto").lower()
+    if name == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if name.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise EmogestureError(f"--device {name}: no CUDA GPU is visible to torch (this torch is "
+                                  f"{torch.__version__}); use --device cpu")
+        return name
+    if name == "cpu":
+        return name
+    raise EmogestureError(f"--device {name!r}: choose one of {', '.join(DEVICES)} (or cuda:N)")
+
+
+def resolve_precision(precision: str | None, device: str | torch.device) -> str:
+    """``auto``/None -> ``bf16`` where :func:`native_bf16`, else ``fp32``; ``fp32``/``bf16`` as asked."""
+    precision = (precision or "auto").lower()
+    if precision not in PRECISIONS:
+        raise EmogestureError(f"--precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+    if precision == "auto":
+        return "bf16" if native_bf16(device) else "fp32"
+    return precision
+
+
+def autocast(precision: str, device: str | torch.device):
+    """A context that runs matrix products in bf16 when ``precision == "bf16"`` (else does nothing)."""
+    if precision != "bf16":
+        return nullcontext()
+    return torch.autocast(device_type=torch.device(device).type, dtype=torch.bfloat16)
+
+
+class StageTimes(dict):
+    """Wall seconds per named stage, accumulated: ``with times.stage("sampling"): ...``."""
+
+    def __init__(self, device: str | torch.device = "cpu") -> None:
+        super().__init__()
+        self.device = torch.device(device)
+
+    @contextmanager
+    def stage(self, name: str):
+        self._sync()
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._sync()
+            self[name] = self.get(name, 0.0) + time.perf_counter() - t0
+
+    def _sync(self) -> None:
+        if self.device.type == "cuda":
+            torch.cuda.synchronize(self.device)
+
+
+@contextmanager
+def maybe_stage(times: StageTimes | None, name: str):
+    """``times.stage(name)`` when timing, else nothing."""
+    if times is None:
+        yield
+    else:
+        with times.stage(name):
+            yield
