@@ -8,6 +8,7 @@ rate no model made of matrix products beats on this machine, so FLOPs ÷ this ra
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import time
@@ -74,7 +75,12 @@ def floors(device: str = "cpu", sizes: tuple[int, ...] = (2048, 4096)) -> dict:
             for name, dtype in (("fp32", torch.float32), ("bf16", torch.bfloat16))}
 
 
-if __name__ == "__main__":
-    import json
+def write_json(path, result: dict) -> None:
+    """Write a benchmark's result as JSON at ``path`` (a ``pathlib.Path``; None = nowhere)."""
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(result, indent=1))
 
+
+if __name__ == "__main__":
     print(json.dumps({**describe(), "matmul_gflops": floors()}, indent=1))

@@ -15,7 +15,6 @@ Usage: python bench/stages.py [--preset tiny|paper] [--precision fp32|bf16] [--s
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -156,9 +155,7 @@ def main() -> None:
     result = {"machine": machine.describe(args.device),
               **run(args.preset, args.precision, args.seconds, args.exports, device=args.device)}
     print(table(result))
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=1))
+    machine.write_json(args.json, result)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,6 @@ Usage: python bench/whole.py [--preset tiny|paper] [--lengths 10,60,600] [--prec
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import subprocess
 import sys
@@ -127,9 +126,7 @@ def main() -> None:
     lengths = [float(x) for x in args.lengths.split(",")]
     result = {"machine": machine.describe(args.device), **run(args.preset, lengths, args.precision, args.device)}
     print(table(result))
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=1))
+    machine.write_json(args.json, result)
 
 
 if __name__ == "__main__":
