@@ -7,8 +7,10 @@
 # Comparisons are made on the val split (calibrated on, never trained on); the test split is scored
 # once, for the report (paper Table 1 layout plus the prior's reconstruction error, emotion edits and a
 # 65-s long-audio seam check, each check able to fail).
-# Three trainings side by side, one CPU thread each (about 45 min on 2 cores), then two evaluations.
-# Writes experiments/reports/gesture_model/{val,test}/ and training_time.txt.
+# "Ours without the stream" is the tiny design before issue 18 (48 cosines, the decoder deaf to timing).
+# Four trainings side by side, one CPU thread each (about 60 min on 2 cores), then the evaluations:
+# val with 4 sampling seeds, test once.
+# Writes experiments/reports/gesture_model/{val,test}/, val_seeds.md and training_time.txt.
 # Usage: experiments/gesture_model.sh [STEPS] [JOINT_STEPS]   (defaults: 900 1200)
 # No prior and no audio train STEPS; disjoint trains JOINT_STEPS (half prior, half denoiser), like ours.
 set -euo pipefail
@@ -33,13 +35,32 @@ train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, write
     echo "$variant: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside two other trainings)" \
         > "$WORK/gesture_$variant.time"
 }
-train disjoint & train no_prior & train no_audio & wait
+# ours without the timing stream (issue 18): the tiny design before it, 48 cosines, no stream
+train_no_stream() {
+    grep -qs "\"step\": $JOINT_STEPS" "$WORK/gesture_no_stream/model.json" && return 0
+    local start=$(date +%s)
+    OMP_NUM_THREADS=1 $EG train gesture --data "$CACHE" --speech "$SPEECH" --out "$WORK/gesture_no_stream" \
+        --steps "$JOINT_STEPS" --checkpoint-every 100 --quiet --set model.vae.low_frequency_path=48 \
+        --set model.vae.timing_features=0 --set model.vae.timing_smoothing=0 \
+        --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0
+    echo "no stream: $(( $(date +%s) - start )) s for $JOINT_STEPS steps (1 thread, beside other trainings)" \
+        > "$WORK/gesture_no_stream.time"
+}
+train disjoint & train no_prior & train no_audio & train_no_stream & wait
 { grep gesture "$BUNDLED/times.txt" | sed 's/^gesture/joint (ours, the bundled run)/'
-  cat "$WORK"/gesture_{disjoint,no_prior,no_audio}.time; } | tee "$REPORT/training_time.txt"
+  cat "$WORK"/gesture_{disjoint,no_prior,no_audio,no_stream}.time 2>/dev/null; } | tee "$REPORT/training_time.txt"
 
-MODELS=(--model "ours=$BUNDLED/gesture" --model "disjoint=$WORK/gesture_disjoint"
+MODELS=(--model "ours=$BUNDLED/gesture" --model "ours without the stream=$WORK/gesture_no_stream"
+        --model "disjoint=$WORK/gesture_disjoint"
         --model "no prior=$WORK/gesture_no_prior" --model "no audio model=$WORK/gesture_no_audio")
 for split in val test; do
     $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLED/extractor" --split "$split" \
         --out "$REPORT/$split" --overwrite "${MODELS[@]}"
 done
+# three more sampling seeds on val (no long audio): the seed spread of every row
+for seed in 1 2 3; do
+    $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLED/extractor" --split val --seed "$seed" \
+        --long-audio 0 --out "$WORK/gesture_model_val_seed$seed" --overwrite "${MODELS[@]}"
+done
+.venv/bin/python experiments/seed_summary.py "$REPORT/val/gesture_models_val.json" \
+    "$WORK"/gesture_model_val_seed{1,2,3}/gesture_models_val.json > "$REPORT/val_seeds.md"

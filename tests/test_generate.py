@@ -133,6 +133,8 @@ def test_batch_equals_single(runs):
     pipe = GesturePipeline.from_run(runs / "gesture")
     g = np.random.default_rng(1)
     conds = [g.normal(size=(3, 256)).astype(np.float32) for _ in range(3)]
+    if pipe.loaded.config.hears_timing:  # the tiny preset's decoder reads the speech's timing stream
+        conds.append(g.normal(size=(3, 300, 2)).astype(np.float32))
     batch = pipe.generate_windows(conds, [11, 22, 33])
     single = pipe.generate_windows([c[1:2] for c in conds], [22])
     np.testing.assert_allclose(batch[1], single[0], atol=1e-5)

@@ -113,6 +113,7 @@ def test_generation_is_seeded_and_batch_independent(trained):
     model = load_model(trained / "joint", "gesture")
     rng = np.random.default_rng(0)
     conds = [rng.normal(size=(5, 256)).astype(np.float32) for _ in range(3)]
+    conds.append(rng.normal(size=(5, 300, 2)).astype(np.float32))  # the tiny decoder's timing stream
     a = generate_from_conditions(model, conds, window_seeds(1, 5), batch_size=5)
     b = generate_from_conditions(model, conds, window_seeds(1, 5), batch_size=2)
     c = generate_from_conditions(model, conds, window_seeds(2, 5), batch_size=5)
@@ -141,6 +142,7 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     model = load_model(trained / "joint", "gesture")
     rng = np.random.default_rng(1)
     conds = [rng.normal(size=(3, 256)).astype(np.float32) for _ in range(3)]
+    conds.append(rng.normal(size=(3, 300, 2)).astype(np.float32))  # the tiny decoder's timing stream
     plain = generate_from_conditions(model, conds, window_seeds(0, 3), residual=False)
     noisy = generate_from_conditions(model, conds, window_seeds(0, 3))
     assert not np.allclose(plain, noisy)
@@ -241,7 +243,7 @@ def test_model_info_gesture_prints_the_paper_counts(capsys):
 def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(trained):
     from emogesture.audio import load_audio
     from emogesture.pipeline.conditions import (emotion_label_edit, generate_from_conditions, model_conditions,
-                                                window_seeds)
+                                                reconstruct_motion, window_seeds)
     from emogesture.pipeline.generate import GesturePipeline
     from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -255,6 +257,20 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     own = generate_from_conditions(model, conds, seeds, residual=False)
     other = generate_from_conditions(model, [*conds[:3], np.roll(conds[3], 40, axis=1)], seeds, residual=False)
     assert not np.allclose(own, other)  # the stream changes the motion, all else equal
+    # the generation settings (guidance, output smoothing) act at generation only, never on the prior's
+    # reconstruction; smoothing lowers the frame-to-frame change
+    assert (model.config.vae.timing_guidance, model.config.vae.output_smoothing) == (3.0, 1.75)  # the tiny preset's
+    vae = model.config.vae
+    made = {}
+    for vae.timing_guidance, vae.output_smoothing in ((1.0, 0.0), (3.0, 0.0), (1.0, 2.0)):
+        made[vae.timing_guidance, vae.output_smoothing] = generate_from_conditions(model, conds, seeds, residual=False)
+    assert not np.allclose(made[1.0, 0.0], made[3.0, 0.0])
+    assert np.abs(np.diff(made[1.0, 2.0], axis=1)).mean() < 0.8 * np.abs(np.diff(made[1.0, 0.0], axis=1)).mean()
+    vae.timing_guidance, vae.output_smoothing = 3.0, 1.75
+    gt = np.asarray(cache.split("test").motion[:2], np.float32)
+    plain = reconstruct_motion(model, gt, timing=conds[3][:2])
+    model.config.vae.timing_guidance, model.config.vae.output_smoothing = 1.0, 0.0
+    np.testing.assert_allclose(reconstruct_motion(model, gt, timing=conds[3][:2]), plain, atol=1e-5)
     edited = emotion_label_edit(model, conds, np.zeros(len(conds[0]), np.int64))  # an edit keeps the own stream
     assert len(edited) == 4 and edited[3] is conds[3] and edited[0] is conds[0]
     wave, _ = load_audio(next((trained / "root" / "wave16k").glob("*.wav")))

@@ -304,3 +304,37 @@ def test_timing_stream_smoothing_removes_frame_jitter_before_the_decoder():
     assert outs[2.0] < 0.75 * outs[0.0]  # (0.61 measured; without smoothing the two are equal)
     with pytest.raises(ConfigError, match="timing_smoothing"):
         MotionVAEConfig(timing_smoothing=-1)
+
+
+def test_timing_guidance_scales_the_streams_part_of_the_decoding():
+    torch.manual_seed(0)
+    cfg = MotionVAEConfig(frames=40, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32,
+                          timing_features=2)
+    vae = MotionVAE(cfg).eval()
+    torch.nn.init.normal_(vae.timing_to_query.weight)  # zero at initialisation
+    z, stream = torch.randn(3, 32), torch.randn(3, 40, 2)
+    with torch.no_grad():
+        heard, deaf = vae.decode(z, timing=stream), vae.decode(z, timing=torch.zeros_like(stream))
+        torch.testing.assert_close(vae.decode(z, timing=stream, guidance=1.0), heard)
+        torch.testing.assert_close(vae.decode(z, timing=stream, guidance=0.0), deaf, atol=1e-5, rtol=1e-5)
+        torch.testing.assert_close(vae.decode(z, timing=stream, guidance=3.0), deaf + 3 * (heard - deaf),
+                                   atol=1e-5, rtol=1e-5)
+    assert not torch.allclose(heard, deaf)
+    with pytest.raises(ConfigError, match="timing_guidance"):
+        MotionVAEConfig(timing_guidance=-1)
+    with pytest.raises(ConfigError, match="output_smoothing"):
+        MotionVAEConfig(output_smoothing=-0.5)
+
+
+def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_the_papers():
+    from emogesture.models.gesture import GestureModelConfig
+
+    for variant in ("joint", "disjoint"):
+        vae = GestureModelConfig.preset("tiny", variant).vae
+        assert (vae.low_frequency_path, vae.timing_features, vae.timing_guidance) == (16, 2, 3.0)
+        assert vae.output_smoothing > 0
+    for variant in ("no_prior", "no_audio"):  # the ablations keep the design before issue 18
+        c = GestureModelConfig.preset("tiny", variant)
+        assert not c.hears_timing and c.vae.low_frequency_path == 48 and c.vae.output_smoothing == 0
+    paper = GestureModelConfig.preset("paper")
+    assert not paper.hears_timing and paper.vae.low_frequency_path == 0 and paper.vae.timing_guidance == 1.0

@@ -472,3 +472,27 @@ def test_ast_checkpoint_copies_or_resizes():
     assert torch.allclose(new[:, 0], old[:, 0]) and torch.allclose(new[:, 100], old[:, 49])
     expected = _time_interp(old.permute(0, 2, 1).numpy().astype(np.float64), 101)
     assert np.allclose(new.permute(0, 2, 1).numpy(), expected, atol=1e-5)
+
+
+def test_encode_runs_only_the_encoders_of_the_latents_asked_for():
+    from emogesture.models.speech import SpeechDisentangler
+
+    torch.manual_seed(0)
+    x = torch.randn(2, 1024, 128)
+    for context in (False, True):
+        cfg = SpeechModelConfig.preset("tiny", num_speakers=5)
+        cfg.emotion_speaker_context = context
+        model = SpeechDisentangler(cfg).eval()
+        if context:
+            torch.nn.init.normal_(model.emotion_context[1].weight)  # zero at initialisation
+        with torch.no_grad():
+            full = model.encode(x)
+            emotion = model.encode(x, parts=("emotion",))
+            style = model.encode(x, parts=("style",))
+        torch.testing.assert_close(emotion.emotion, full.emotion)
+        torch.testing.assert_close(emotion.emotion_logits, full.emotion_logits)
+        torch.testing.assert_close(style.style, full.style)
+        assert emotion.content.shape == (2, 0) and style.content.shape == (2, 0) and style.emotion.shape == (2, 0)
+        assert (emotion.style.shape == (2, 256)) is context  # the emotion encoder reads the speaker context
+    with pytest.raises(ValueError, match="unknown latent parts"):
+        model.encode(x, parts=("prosody",))

@@ -123,11 +123,11 @@ def run_generate(args: argparse.Namespace) -> int:
         encoded = pipe.encode(wave, progress=bar.update)
     perceived = [pipe.perceive(*encoded, source=str(args.speech))]
     if edit is not None and "emotion" in edit_audio:
-        enc, starts = pipe.encode(edit_audio["emotion"])
+        enc, starts = pipe.encode(edit_audio["emotion"], parts=pipe.edit_source_parts("emotion"))
         perceived.append(pipe.perceive(enc, starts, source=str(args.emotion_from)))
         edit.emotion_from = auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech)) if mode == "auto" else enc.emotion
     if edit is not None and "style" in edit_audio:
-        edit.style_from = pipe.encode(edit_audio["style"])[0].style
+        edit.style_from = pipe.encode(edit_audio["style"], parts=pipe.edit_source_parts("style"))[0].style
     for p in perceived:
         print(p.summary(mode))
 

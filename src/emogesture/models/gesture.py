@@ -79,12 +79,17 @@ class GestureModelConfig:
 
         A ẑ0 denoiser regresses to the conditional mean, so ``tiny`` also adds the calibrated residual
         noise (``diffusion.residual_scale = 1``, see :mod:`emogesture.diffusion.residual`).
+
+        ``tiny``'s motion decoder also hears the speech's timing stream (issue 18; not in the paper),
+        for the variants that hear speech through a decoder (``joint``, ``disjoint``): see
+        :meth:`MotionVAEConfig.preset`. ``paper`` is the paper's design.
         """
         n = 1 if variant == "no_audio" else 3
         diffusion = (DiffusionConfig(prediction_type="sample", residual_scale=1.0) if name == "tiny"
                      else DiffusionConfig())
-        return cls(variant=variant, vae=MotionVAEConfig.preset(name), denoiser=DenoiserConfig.preset(name, n),
-                   diffusion=diffusion)
+        timing = name == "tiny" and variant in ("joint", "disjoint")
+        return cls(variant=variant, vae=MotionVAEConfig.preset(name, timing=timing),
+                   denoiser=DenoiserConfig.preset(name, n), diffusion=diffusion)
 
 
 class LinearMotionMap(nn.Module):
@@ -100,7 +105,8 @@ class LinearMotionMap(nn.Module):
         z = self.down(motion.reshape(motion.shape[0], -1))
         return z, z, torch.zeros_like(z)
 
-    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None,
+               guidance: float = 1.0) -> torch.Tensor:
         return self.up(z).reshape(z.shape[0], self.config.frames, self.config.feature_dim)
 
     def forward(self, motion: torch.Tensor, generator=None, sample: bool = True, timing=None):

@@ -84,6 +84,12 @@ class MotionVAEConfig:
     #: σ, in frames, of a Gaussian smoothing of the timing stream before the decoder reads it (0 = none):
     #: the fbank's frame-to-frame onset strength is jittery, and read raw it comes out as jitter.
     timing_smoothing: float = 0.0
+    #: Generation only (training reconstructs with ``w = 1``): the decoder's output is
+    #: ``D(z, zeros) + w · (D(z, stream) − D(z, zeros))``, the timing stream's part scaled by ``w``
+    #: (guidance on the stream, as classifier-free guidance does on a condition). See :meth:`MotionVAE.decode`.
+    timing_guidance: float = 1.0
+    #: Generation only: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
+    output_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token, self.latent_tokens) < 1:
@@ -95,9 +101,10 @@ class MotionVAEConfig:
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
-        if self.timing_features < 0 or self.timing_smoothing < 0:
-            raise ConfigError(f"motion VAE: timing_features and timing_smoothing must be ≥ 0, got "
-                              f"{self.timing_features}, {self.timing_smoothing}")
+        if min(self.timing_features, self.timing_smoothing, self.timing_guidance, self.output_smoothing) < 0:
+            raise ConfigError(f"motion VAE: timing_features, timing_smoothing, timing_guidance and output_smoothing "
+                              f"must be ≥ 0, got {self.timing_features}, {self.timing_smoothing}, "
+                              f"{self.timing_guidance}, {self.output_smoothing}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -106,7 +113,7 @@ class MotionVAEConfig:
         return SkipTransformerConfig(self.width, self.layers, self.heads, self.ff_dim, self.dropout, cross_attention)
 
     @classmethod
-    def preset(cls, name: str, feature_dim: int = 282, frames: int = 300) -> "MotionVAEConfig":
+    def preset(cls, name: str, feature_dim: int = 282, frames: int = 300, timing: bool = False) -> "MotionVAEConfig":
         """``paper``: width 256, 9 layers, 4 heads, ff 1024, dropout 0.1 (≈17.9 M parameters).
 
         ``tiny``: width 64, 3 layers (1 + 1 + 1), 4 heads, ff 256, no dropout, and a low-frequency path
@@ -117,9 +124,20 @@ class MotionVAEConfig:
         pose's) and the same time per step.
         Without dropout, attention runs in torch's fused CPU kernel instead of materialising and masking
         every 300×300 attention matrix: a joint training step is about twice as fast.
+
+        ``tiny`` with ``timing=True`` (issue 18; the gesture model's default, for the variants that hear
+        speech): 16 cosines only (0.75 Hz over 10 s), so the latent carries posture and slow motion
+        but not the strokes, and the decoder reads the speech's timing stream (smoothed, σ 2 frames)
+        to place them; at generation the stream's part is scaled by 3 (``timing_guidance``) and the
+        output smoothed (σ 1.75 frames). The choices were made on the val texts (see
+        ``experiments/README.md``, "Gestures on the beat").
         """
         if name == "paper":
             return cls(feature_dim=feature_dim, frames=frames)
+        if name == "tiny" and timing:
+            return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
+                       low_frequency_path=min(16, frames), timing_features=2, timing_smoothing=2.0,
+                       timing_guidance=3.0, output_smoothing=1.75)
         if name == "tiny":
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
                        low_frequency_path=min(48, frames))
@@ -223,9 +241,22 @@ class MotionVAE(nn.Module):
         eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
         return mu + torch.exp(0.5 * logvar) * eps, mu, logvar
 
-    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None,
+               guidance: float = 1.0) -> torch.Tensor:
         """``z [B, 256] -> motion [B, T, 282]`` with ``T = frames`` (default: the configured maximum);
-        ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``."""
+        ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``.
+
+        ``guidance = w``: ``D(z, 0) + w · (D(z, timing) − D(z, 0))`` (a zero stream is what a silent
+        window gives; both decodings run as one batch). ``w = 1`` is the plain decoder, as trained.
+        """
+        if guidance != 1.0 and self.timing_to_query is not None:
+            both = self._decode(torch.cat([z, z]), frames, None if timing is None else
+                                torch.cat([timing, torch.zeros_like(timing)]))
+            guided, plain = both[: len(z)], both[len(z):]
+            return plain + guidance * (guided - plain)
+        return self._decode(z, frames, timing)
+
+    def _decode(self, z: torch.Tensor, frames: int | None, timing: torch.Tensor | None) -> torch.Tensor:
         c = self.config
         t = c.frames if frames is None else int(frames)
         if not 1 <= t <= c.frames:

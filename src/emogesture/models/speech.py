@@ -82,6 +82,10 @@ class AudioLatents(NamedTuple):
     style: torch.Tensor
 
 
+#: The three speech latents, in the order of :class:`SpeechEncoding`.
+LATENT_PARTS = ("content", "emotion", "style")
+
+
 class SpeechEncoding(NamedTuple):
     """Output of :meth:`SpeechDisentangler.encode`: latents ``[B, 256]`` and logits ``[B, 8]``/``[B, n]``."""
 
@@ -212,16 +216,26 @@ class SpeechDisentangler(nn.Module):
             nn.init.zeros_(self.emotion_context[1].weight)
             nn.init.zeros_(self.emotion_context[1].bias)
 
-    def encode(self, fbank: torch.Tensor, emotion_fbank: torch.Tensor | None = None) -> SpeechEncoding:
+    def encode(self, fbank: torch.Tensor, emotion_fbank: torch.Tensor | None = None,
+               parts: tuple[str, ...] = LATENT_PARTS) -> SpeechEncoding:
         """``fbank [B, 1024, 128]`` -> content, emotion, style ``[B, 256]``, logits ``[B, 8]``, ``[B, n]``.
 
         ``emotion_fbank [B, 1024, 128]``: another input for the emotion encoder alone (training-time
-        augmentation); default ``fbank``.
+        augmentation); default ``fbank``. ``parts``: the latents wanted (a subset of ``content``,
+        ``emotion``, ``style``); an encoder nobody needs is not run and its outputs are ``[B, 0]``
+        (the style encoder also runs for ``emotion`` when the emotion encoder reads the speaker context).
         """
-        content, _ = self.content_encoder(fbank)
-        style, speaker_logits = self.style_encoder(fbank)
-        context = None if self.emotion_context is None else self.emotion_context(style.detach())
-        emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank, context)
+        unknown = set(parts) - set(LATENT_PARTS)
+        if unknown:
+            raise ValueError(f"unknown latent parts {sorted(unknown)}; known: {', '.join(LATENT_PARTS)}")
+        empty = fbank.new_zeros(fbank.shape[0], 0)
+        content = self.content_encoder(fbank)[0] if "content" in parts else empty
+        style = speaker_logits = emotion = emotion_logits = empty
+        if "style" in parts or ("emotion" in parts and self.emotion_context is not None):
+            style, speaker_logits = self.style_encoder(fbank)
+        if "emotion" in parts:
+            context = None if self.emotion_context is None else self.emotion_context(style.detach())
+            emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank, context)
         return SpeechEncoding(content, emotion, style, emotion_logits, speaker_logits)
 
     def decode(self, content: torch.Tensor, emotion: torch.Tensor, style: torch.Tensor) -> torch.Tensor:

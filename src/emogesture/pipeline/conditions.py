@@ -23,6 +23,7 @@ from emogesture.diffusion.residual import add_residual_noise, residual_factor
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
+from emogesture.models.motion_vae import gaussian_smooth
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.runtime import autocast
 
@@ -135,19 +136,27 @@ def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64
 
 @torch.inference_mode()
 def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64,
-                   timing: np.ndarray | None = None, precision: str = "fp32") -> np.ndarray:
+                   timing: np.ndarray | None = None, precision: str = "fp32", generation: bool = True) -> np.ndarray:
     """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
     the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
-    ``precision="bf16"``: the decoder runs under bf16 autocast."""
+    ``precision="bf16"``: the decoder runs under bf16 autocast. ``generation``: apply the decoder's
+    generation settings (``vae.timing_guidance``, ``vae.output_smoothing``); ``False`` decodes as in
+    training (the prior's reconstruction)."""
     model = gesture.model.eval()
+    vae = gesture.config.vae
     mean, std = _motion_statistics(gesture)
-    reads = gesture.config.vae.timing_features > 0
+    reads = vae.timing_features > 0
+    guidance = vae.timing_guidance if generation and reads else 1.0
+    smoothing = vae.output_smoothing if generation else 0.0
     out = []
     for i in range(0, len(z), batch_size):
         stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
                   if reads and timing is not None else None)
         with autocast(precision, z.device):
-            out.append(model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream).float().cpu().numpy())
+            x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream, guidance=guidance).float()
+        if smoothing > 0:
+            x = gaussian_smooth(x, smoothing)
+        out.append(x.cpu().numpy())
     return np.concatenate(out) * std + mean
 
 
@@ -173,7 +182,8 @@ def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int
     """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
     (encoder mean, then decoder), raw features ``[W, T, D]``; ``timing``: the windows' timing stream,
     for a decoder that reads one."""
-    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size, timing)
+    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size, timing,
+                          generation=False)
 
 
 def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,

@@ -38,6 +38,7 @@ from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
+from emogesture.models.speech import LATENT_PARTS
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.runtime import StageTimes, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
@@ -215,9 +216,20 @@ class GesturePipeline:
         return largest_joint_jumps(joints.numpy())
 
     def encode(self, waveform: np.ndarray, hop_seconds: float = 8.0, progress: Callable[[int], None] | None = None,
-               times: StageTimes | None = None) -> tuple[EncodedWindows, list[float]]:
-        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s)."""
-        return self.speech.encode(waveform, 16000, hop_seconds, progress, times)
+               times: StageTimes | None = None, parts: tuple[str, ...] = LATENT_PARTS
+               ) -> tuple[EncodedWindows, list[float]]:
+        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s);
+        ``parts``: the latents wanted (default all three; an edit source needs fewer)."""
+        return self.speech.encode(waveform, 16000, hop_seconds, progress, times, parts)
+
+    def edit_source_parts(self, edit: str, emotion_mode: str = "auto") -> tuple[str, ...]:
+        """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
+        (and its style, which ``--emotion auto`` and the perception report read), or its style."""
+        if edit == "style":
+            return ("style",)
+        if edit != "emotion":
+            raise EmogestureError(f"unknown edit source {edit!r}; known: emotion, style")
+        return ("emotion", "style") if perception_of(self.speech) is not None else ("emotion",)
 
     def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str) -> PerceivedEmotion:
         """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""

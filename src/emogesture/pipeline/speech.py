@@ -16,7 +16,7 @@ from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
-from emogesture.models.speech import AudioLatents
+from emogesture.models.speech import LATENT_PARTS, AudioLatents
 from emogesture.runtime import StageTimes, autocast, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
@@ -79,31 +79,34 @@ class SpeechLatentEncoder:
 
     @torch.inference_mode()
     def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None,
-                       progress: Callable[[int], None] | None = None) -> EncodedWindows:
+                       progress: Callable[[int], None] | None = None,
+                       parts: tuple[str, ...] = LATENT_PARTS) -> EncodedWindows:
         """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
 
         ``renormalise=(mean, std)``: the windows were normalised with these statistics (another cache's);
-        they are mapped to the model's own statistics first.
+        they are mapped to the model's own statistics first. ``parts``: the latents wanted; the encoders
+        of the others are skipped and their arrays are ``[W, 0]`` (see ``SpeechDisentangler.encode``).
         """
-        parts: list[list[np.ndarray]] = [[] for _ in range(5)]
+        stores: list[list[np.ndarray]] = [[] for _ in range(5)]
         for i in range(0, len(windows), batch_size):
             x = torch.from_numpy(np.asarray(windows[i : i + batch_size], np.float32)).to(self.device)
             if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
                 raw = x * (2 * renormalise[1]) + renormalise[0]
                 x = (raw - self.fbank_mean) / (2 * self.fbank_std)
             with autocast(self.precision, self.device):
-                enc = self.model.encode(x)
-            for store, value in zip(parts, enc):
+                enc = self.model.encode(x, parts=parts)
+            for store, value in zip(stores, enc):
                 store.append(value.float().cpu().numpy())
             if progress is not None:
                 progress(len(x))
-        return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in parts))
+        return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in stores))
 
     def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0,
-               progress: Callable[[int], None] | None = None, times: StageTimes | None = None
-               ) -> tuple[EncodedWindows, list[float]]:
+               progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
+               parts: tuple[str, ...] = LATENT_PARTS) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).
-        ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it."""
+        ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it;
+        ``parts``: the latents wanted (an edit source needs only its emotion or its style)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         with maybe_stage(times, "fbank"):
@@ -114,7 +117,7 @@ class SpeechLatentEncoder:
             windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
             timing = timing_stream(windows)
         with maybe_stage(times, "speech encoders"):
-            enc = self.encode_windows(windows, progress=progress)
+            enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing = timing
         return enc, starts
 
