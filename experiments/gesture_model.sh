@@ -24,29 +24,22 @@ grep -qs '"step": 1200' "$BUNDLED/gesture/model.json" || bash experiments/bundle
 SPEECH=$BUNDLED/speech
 mkdir -p "$REPORT"
 
-train() {  # variant -> trains into $WORK/gesture_<variant> on one thread, writes its wall time
-    local variant=$1 start steps=$STEPS
-    if [ "$variant" = disjoint ]; then steps=$JOINT_STEPS; fi
-    grep -qs "\"step\": $steps" "$WORK/gesture_$variant/model.json" && return 0
+train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> on one thread, writes its wall time
+    local name=$1 variant=$2 steps=$3 start
+    shift 3
+    grep -qs "\"step\": $steps" "$WORK/gesture_$name/model.json" && return 0
     start=$(date +%s)
     OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
-        --out "$WORK/gesture_$variant" --steps "$steps" --checkpoint-every 100 --quiet \
-        --set "disjoint_prior_steps=$((steps / 2))"
-    echo "$variant: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside two other trainings)" \
-        > "$WORK/gesture_$variant.time"
+        --out "$WORK/gesture_$name" --steps "$steps" --checkpoint-every 100 --quiet \
+        --set "disjoint_prior_steps=$((steps / 2))" "$@"
+    echo "$name: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside other trainings)" \
+        > "$WORK/gesture_$name.time"
 }
-# ours without the timing stream (issue 18): the tiny design before it, 48 cosines, no stream
-train_no_stream() {
-    grep -qs "\"step\": $JOINT_STEPS" "$WORK/gesture_no_stream/model.json" && return 0
-    local start=$(date +%s)
-    OMP_NUM_THREADS=1 $EG train gesture --data "$CACHE" --speech "$SPEECH" --out "$WORK/gesture_no_stream" \
-        --steps "$JOINT_STEPS" --checkpoint-every 100 --quiet --set model.vae.low_frequency_path=48 \
-        --set model.vae.timing_features=0 --set model.vae.timing_smoothing=0 \
-        --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0
-    echo "no stream: $(( $(date +%s) - start )) s for $JOINT_STEPS steps (1 thread, beside other trainings)" \
-        > "$WORK/gesture_no_stream.time"
-}
-train disjoint & train no_prior & train no_audio & train_no_stream & wait
+# "ours without the stream" (issue 18): the tiny design before it, 48 cosines and no timing stream
+train disjoint disjoint "$JOINT_STEPS" & train no_prior no_prior "$STEPS" & train no_audio no_audio "$STEPS" &
+train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set model.vae.timing_features=0 \
+    --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 &
+wait
 { grep gesture "$BUNDLED/times.txt" | sed 's/^gesture/joint (ours, the bundled run)/'
   cat "$WORK"/gesture_{disjoint,no_prior,no_audio,no_stream}.time 2>/dev/null; } | tee "$REPORT/training_time.txt"
 

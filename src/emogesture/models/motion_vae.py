@@ -134,13 +134,10 @@ class MotionVAEConfig:
         """
         if name == "paper":
             return cls(feature_dim=feature_dim, frames=frames)
-        if name == "tiny" and timing:
-            return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
-                       low_frequency_path=min(16, frames), timing_features=2, timing_smoothing=2.0,
-                       timing_guidance=3.0, output_smoothing=1.75)
         if name == "tiny":
+            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=3.0, output_smoothing=1.75)
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
-                       low_frequency_path=min(48, frames))
+                       low_frequency_path=min(16 if timing else 48, frames), **(hears if timing else {}))
         raise ConfigError(f"unknown motion VAE preset {name!r}; known: paper, tiny")
 
 
