@@ -25,14 +25,15 @@ SPEECH=$BUNDLED/speech
 mkdir -p "$REPORT"
 
 train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> on one thread, writes its wall time
-    local name=$1 variant=$2 steps=$3 start
+    local name=$1 variant=$2 steps=$3 start resumed=""
     shift 3
     grep -qs "\"step\": $steps" "$WORK/gesture_$name/model.json" && return 0
+    [ -f "$WORK/gesture_$name/checkpoints/last.ckpt" ] && resumed=", resumed from a checkpoint: the time of the resumed part"
     start=$(date +%s)
     OMP_NUM_THREADS=1 $EG train gesture --variant "$variant" --data "$CACHE" --speech "$SPEECH" \
         --out "$WORK/gesture_$name" --steps "$steps" --checkpoint-every 100 --quiet \
         --set "disjoint_prior_steps=$((steps / 2))" "$@"
-    echo "$name: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside other trainings)" \
+    echo "$name: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside other trainings$resumed)" \
         > "$WORK/gesture_$name.time"
 }
 # "ours without the stream" (issue 18): the tiny design before it, 48 cosines and no timing stream
@@ -41,7 +42,8 @@ train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set
     --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 &
 wait
 { grep gesture "$BUNDLED/times.txt" | sed 's/^gesture/joint (ours, the bundled run)/'
-  cat "$WORK"/gesture_{disjoint,no_prior,no_audio,no_stream}.time 2>/dev/null; } | tee "$REPORT/training_time.txt"
+  for f in "$WORK"/gesture_{no_stream,disjoint,no_prior,no_audio}.time; do if [ -f "$f" ]; then cat "$f"; fi; done
+} | tee "$REPORT/training_time.txt"
 
 MODELS=(--model "ours=$BUNDLED/gesture" --model "ours without the stream=$WORK/gesture_no_stream"
         --model "disjoint=$WORK/gesture_disjoint"

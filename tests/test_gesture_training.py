@@ -86,7 +86,9 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     assert use["held_out"] and use["trained_on"]["ours"] == ["train"] and use["trained_on"]["extractor"] == ["train"]
     assert r["long_audio"]["expected_frames"] == 900
     assert r["long_audio"]["candidates_1"]["frames"] == r["long_audio"]["candidates_4"]["frames"] == 900
-    truth = r["long_audio"]["ground_truth"]  # the seam check applied to the takes' own motion
+    assert r["long_audio"]["candidates_1"]["seeds"] == 4  # unselected windows: four draws' seam jumps pooled
+    truth = r["long_audio"]["ground_truth"]  # the seam statistics of the same stretch's real motion
+    assert 0 < truth["p99_seam_jump_m"] <= truth["max_seam_jump_m"]
     assert truth["takes"] >= 1 and truth["seam_jumps"] > 0 and 0 <= truth["seam_share_above_p99"] <= 1
     whole = r["long_audio"]["every_take"]  # every take generated whole, next to its ground truth
     assert whole["takes"] == whole["ground_truth"]["takes"] >= 1 and whole["seam_jumps"] > 0
@@ -212,16 +214,36 @@ def test_seam_jumps_find_a_jump_at_a_seam():
     joints = np.zeros((600, 55, 3))
     joints[..., 0] = 0.05 * np.sin(2 * np.pi * 0.5 * t)[:, None]  # smooth motion, at most ~5 mm per frame
     starts = [0.0, 8.0, 10.0]  # windows 0-10 s, 8-18 s, 10-20 s: overlaps at frames 240-299 and 300-539
-    smooth = seam_jumps(joints, starts, fps)
+    smooth = seam_jumps(joints, starts, fps=fps)
     assert smooth["max_seam_jump_m"] <= smooth["p99_inside_jump_m"] * 1.01
     broken = joints.copy()
     broken[270:, :, 0] += 0.1  # a 10-cm step inside the first overlap
-    r = seam_jumps(broken, starts, fps)
+    r = seam_jumps(broken, starts, fps=fps)
     assert r["max_seam_jump_m"] == pytest.approx(abs(0.1 + joints[270, 0, 0] - joints[269, 0, 0]), abs=1e-9)
     assert r["max_seam_jump_m"] > r["p99_inside_jump_m"]
     assert r["seam_share_above_p99"] > 0 and r["seam_jumps"] + r["inside_jumps"] == 599
     with pytest.raises(Exception, match="too short"):
-        seam_jumps(joints, [0.0], fps)
+        seam_jumps(joints, [0.0], fps=fps)
+
+
+def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
+    from emogesture.eval.gesture_models import seam_statistics, split_jumps
+
+    rng = np.random.default_rng(0)
+    starts_s = [0.0, 8.0, 16.0, 24.0, 32.0, 40.0, 48.0, 55.0]  # 65 s, windows every 8 s
+    smooth = np.abs(rng.normal(0.02, 0.005, size=1949))  # the same motion everywhere: seams like the inside
+    stats = seam_statistics(*split_jumps(smooth, starts_s))
+    assert 0.8 < stats["p99_seam_jump_m"] / stats["p99_inside_jump_m"] < 1.2
+    cut = smooth.copy()  # a hard cut in the middle of every overlap, as stitching without a cross-fade gives
+    for s in starts_s[1:]:
+        cut[int(s * 30) + 25: int(s * 30) + 35] += 0.1
+    bad = seam_statistics(*split_jumps(cut, starts_s))
+    assert bad["p99_seam_jump_m"] / bad["p99_inside_jump_m"] > 3
+    jumpy = smooth.copy()
+    jumpy[1715:1725] += 0.1  # a fast move where the speech changes take (inside the last overlap)
+    assert seam_statistics(*split_jumps(jumpy, starts_s))["max_seam_jump_m"] > 0.1
+    kept = seam_statistics(*split_jumps(jumpy, starts_s, [57.3]))
+    assert kept["max_seam_jump_m"] < 0.1 and kept["seam_jumps"] < stats["seam_jumps"]
 
 
 def test_model_info_gesture_prints_the_paper_counts(capsys):
