@@ -75,7 +75,7 @@ def mean_joint_error(pred_joints: np.ndarray, gt_joints: np.ndarray) -> float:
 class LongAudio:
     """A long recording made of the split's cached windows, take after take: ``wave [N]`` at 16 kHz, the
     ground truth of the same frames ``motion [T, D]`` (motion features), the takes used and the times (s)
-    where one take ends and the next begins."""
+    where the speech and motion do not run on (another take begins, or a gap between cached windows)."""
 
     wave: np.ndarray
     motion: np.ndarray
@@ -89,19 +89,22 @@ def long_audio(cache: WindowsCache, split: str, seconds: float) -> LongAudio:
     root = Path(cache.manifest["root"])
     windows = cache.split(split)
     window_takes = np.asarray(windows.takes)
-    waves, motions, takes, ends, total = [], [], [], [], 0.0
+    waves, motions, takes, boundaries, total, follows = [], [], [], [], 0.0, None
     for take in dict.fromkeys(windows.takes):
         wave, sr = load_audio(root / "wave16k" / f"{take}.wav")
         for i in sorted(np.flatnonzero(window_takes == take), key=lambda i: windows.start_s[i]):
+            if follows is not None and follows != (take, float(windows.start_s[i])):
+                boundaries.append(total)  # another take, or a gap inside this one
             start = int(round(windows.start_s[i] * sr))
             waves.append(wave[start: start + int(round(WINDOW_SECONDS * sr))])
             motions.append(np.asarray(windows.motion[i], np.float32))
             total += WINDOW_SECONDS
+            follows = (take, float(windows.start_s[i]) + WINDOW_SECONDS)
         takes.append(take)
-        ends.append(total)
         if total >= seconds:
             return LongAudio(np.concatenate(waves)[: int(round(seconds * sr))],
-                             np.concatenate(motions)[: int(round(seconds * FPS))], takes, ends[:-1])
+                             np.concatenate(motions)[: int(round(seconds * FPS))], takes,
+                             [b for b in boundaries if b < seconds])
     raise EmogestureError(f"{cache.root}: the {split} split holds less than {seconds} s of cached windows")
 
 
