@@ -156,6 +156,11 @@ def split_jumps(jump: np.ndarray, starts_s: list[float], boundaries_s: list[floa
     return jump[seam & keep], jump[~seam & keep]
 
 
+def pooled_seam_statistics(parts: list[tuple[np.ndarray, np.ndarray]]) -> dict:
+    """(seam jumps, inside jumps) of several sequences -> :func:`seam_statistics` of them all pooled."""
+    return seam_statistics(np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+
+
 def seam_jumps(joints: np.ndarray, starts_s: list[float], boundaries_s: list[float] = (), fps: int = FPS) -> dict:
     """Frame-to-frame jumps of a stitched sequence ``joints [T, 55, 3]``: seams vs inside windows (see
     :func:`split_jumps` and :func:`seam_statistics`)."""
@@ -179,20 +184,17 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
     real motion reaches.
     """
     windows = cache.split(split)
-    seam_parts, inside_parts = [], []
+    parts = []
     window_takes = np.asarray(windows.takes)
     for take in takes:
         idx = sorted(np.flatnonzero(window_takes == take), key=lambda i: windows.start_s[i])
         motion = np.concatenate([np.asarray(windows.motion[i], np.float32) for i in idx])
         starts = window_starts(len(motion) / fps, WINDOW_SECONDS, hop_seconds).tolist()
-        if len(starts) < 2:
-            continue
-        seam, inside = split_jumps(ground_truth_jumps(motion, cache), starts, fps=fps)
-        seam_parts.append(seam)
-        inside_parts.append(inside)
-    if not seam_parts:
+        if len(starts) >= 2:
+            parts.append(split_jumps(ground_truth_jumps(motion, cache), starts, fps=fps))
+    if not parts:
         raise EmogestureError(f"no take of the {split} split is long enough for window seams")
-    return seam_statistics(np.concatenate(seam_parts), np.concatenate(inside_parts)) | {"takes": len(seam_parts)}
+    return pooled_seam_statistics(parts) | {"takes": len(parts)}
 
 
 SEAM_CANDIDATES = (4, 1)  # the generator's default (chosen on the seam statistic) and unselected windows
@@ -220,16 +222,15 @@ def long_audio_check(pipe: GesturePipeline, long: LongAudio, seed: int, hop_seco
     duration = len(long.wave) / 16000
     out: dict = {"seconds": duration, "hop_seconds": hop_seconds, "expected_frames": int(round(duration * FPS)),
                  "boundaries_s": long.boundaries_s}
-    joints, starts = generated_joints(pipe, long.wave, seed, hop_seconds, 4)
-    out["candidates_4"] = {"frames": len(joints), "seeds": 1, **seam_jumps(joints, starts, long.boundaries_s)}
-    seams, insides = [], []
+    chosen, unselected = SEAM_CANDIDATES
+    joints, starts = generated_joints(pipe, long.wave, seed, hop_seconds, chosen)
+    out[f"candidates_{chosen}"] = {"frames": len(joints), "seeds": 1, **seam_jumps(joints, starts, long.boundaries_s)}
+    parts = []
     for s in range(seed, seed + SEAM_SEEDS):
-        joints, starts = generated_joints(pipe, long.wave, s, hop_seconds, 1)
-        seam, inside = split_jumps(largest_joint_jumps(joints), starts, long.boundaries_s)
-        seams.append(seam)
-        insides.append(inside)
-    out["candidates_1"] = {"frames": len(joints), "seeds": SEAM_SEEDS, "windows": len(starts),
-                           **seam_statistics(np.concatenate(seams), np.concatenate(insides))}
+        joints, starts = generated_joints(pipe, long.wave, s, hop_seconds, unselected)
+        parts.append(split_jumps(largest_joint_jumps(joints), starts, long.boundaries_s))
+    out[f"candidates_{unselected}"] = {"frames": len(joints), "seeds": SEAM_SEEDS, "windows": len(starts),
+                                       **pooled_seam_statistics(parts)}
     return out
 
 
@@ -247,7 +248,7 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
     jumps pooled over the takes (see :func:`seam_statistics`): seams where the speech runs on, in
     thousands of jumps, next to :func:`ground_truth_seam_reference` over the same takes."""
     root = Path(cache.manifest["root"])
-    seam_parts, inside_parts = [], []
+    parts = []
     windows = cache.split(split)
     takes = list(dict.fromkeys(windows.takes))
     speeds, envelopes = {}, {}
@@ -258,14 +259,12 @@ def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, see
         envelopes[take] = envelope_at_frames(onset_strength(wave, sr), sr, len(joints), FPS)
         if len(starts) < 2:
             continue
-        seam, inside = split_jumps(largest_joint_jumps(joints), starts)
-        seam_parts.append(seam)
-        inside_parts.append(inside)
-    if not seam_parts:
+        parts.append(split_jumps(largest_joint_jumps(joints), starts))
+    if not parts:
         raise EmogestureError(f"no take of the {split} split is long enough for window seams")
     text = dict(zip(windows.takes, windows.text.tolist()))
-    return seam_statistics(np.concatenate(seam_parts), np.concatenate(inside_parts)) | {
-        "takes": len(seam_parts), "seam_candidates": seam_candidates,
+    return pooled_seam_statistics(parts) | {
+        "takes": len(parts), "seam_candidates": seam_candidates,
         "ground_truth": ground_truth_seam_reference(cache, split, takes, hop_seconds),
         "rhythm": whole_take_rhythm(speeds, envelopes, text, cache)}
 
@@ -298,6 +297,13 @@ def _ratio(v: dict) -> float:
 
 def _tail_ratio(v: dict) -> float:
     return v["p99_seam_jump_m"] / v["p99_inside_jump_m"]
+
+
+def _seam_cells(v: dict) -> str:
+    """The seam statistics' markdown cells: jumps, max, p99 seam, p99 inside (mm), both ratios, share."""
+    return (f"{v['seam_jumps']} | {v['max_seam_jump_m'] * 1000:.1f} | {v['p99_seam_jump_m'] * 1000:.1f} | "
+            f"{v['p99_inside_jump_m'] * 1000:.1f} | {_ratio(v):.2f} | {_tail_ratio(v):.2f} | "
+            f"{100 * v['seam_share_above_p99']:.2f} %")
 
 
 def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str | None, recon: dict,
@@ -504,11 +510,7 @@ def gesture_models_markdown(r: dict) -> str:
         for name, v in rows:
             if v is not None:
                 lines.append(f"| {name} | {v.get('seeds', '-')} | {v.get('frames', la['expected_frames'])} | "
-                             f"{v['seam_jumps']} | {v['max_seam_jump_m'] * 1000:.1f} | "
-                             f"{v.get('p99_seam_jump_m', float('nan')) * 1000:.1f} | "
-                             f"{v['p99_inside_jump_m'] * 1000:.1f} | {_ratio(v):.2f} | "
-                             f"{v.get('p99_seam_jump_m', float('nan')) / v['p99_inside_jump_m']:.2f} | "
-                             f"{100 * v['seam_share_above_p99']:.1f} % |")
+                             f"{_seam_cells(v)} |")
         if "every_take" in la:
             lines += ["", f"Every take of the split generated whole (each its own audio; pooled jumps; ours with "
                       f"{la['every_take'].get('seam_candidates', 4)} candidate per window, unselected):", "",
@@ -516,11 +518,7 @@ def gesture_models_markdown(r: dict) -> str:
                       "max / p99 inside | p99 seam / p99 inside | share above p99 |",
                       "|---|---|---|---|---|---|---|---|---|"]
             for name, v in (("ours", la["every_take"]), ("ground truth", la["every_take"]["ground_truth"])):
-                lines.append(f"| {name} | {v['takes']} | {v['seam_jumps']} | {v['max_seam_jump_m'] * 1000:.1f} | "
-                             f"{v.get('p99_seam_jump_m', float('nan')) * 1000:.1f} | "
-                             f"{v['p99_inside_jump_m'] * 1000:.1f} | {_ratio(v):.2f} | "
-                             f"{v.get('p99_seam_jump_m', float('nan')) / v['p99_inside_jump_m']:.2f} | "
-                             f"{100 * v['seam_share_above_p99']:.2f} % |")
+                lines.append(f"| {name} | {v['takes']} | {_seam_cells(v)} |")
         if "rhythm" in la.get("every_take", {}):
             lines += ["", "Rhythm of the takes generated whole (consecutive 10-s windows of each take; mismatched "
                       "audio as in the rhythm table):", "", "| motion | windows | score | gain | spread | gain / spread |",

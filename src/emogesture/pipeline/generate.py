@@ -35,10 +35,10 @@ from emogesture.audio import check_speech, load_audio, window_activity
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
+from emogesture.models.speech import LATENT_PARTS
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
-from emogesture.models.speech import LATENT_PARTS
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.runtime import StageTimes, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
@@ -222,7 +222,7 @@ class GesturePipeline:
         ``parts``: the latents wanted (default all three; an edit source needs fewer)."""
         return self.speech.encode(waveform, 16000, hop_seconds, progress, times, parts)
 
-    def edit_source_parts(self, edit: str, emotion_mode: str = "auto") -> tuple[str, ...]:
+    def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
         (and its style, which ``--emotion auto`` and the perception report read), or its style."""
         if edit == "style":
