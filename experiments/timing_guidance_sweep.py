@@ -4,6 +4,9 @@ swept on the val texts: timing guidance w (``vae.timing_guidance``), output smoo
 trained model, the same seeds and the same evaluator for every row; writes a markdown table.
 
 Usage: timing_guidance_sweep.py GESTURE_RUN CACHE EXTRACTOR_RUN OUT.md [--split val]
+       [--settings r,w,σ ...] [--other w,σ]
+(``--settings``: the rows to generate, default the sweep below; ``--other``: the setting of the last row,
+which reads another window's timing stream.)
 """
 
 from __future__ import annotations
@@ -27,6 +30,19 @@ SETTINGS = [(1.0, 1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 2.0, 0.0), (0.0, 3.0, 0.0), 
             (1.0, 3.5, 2.0), (1.0, 4.0, 2.0), (0.5, 3.0, 1.5), (1.5, 3.0, 1.5)]
 
 
+def numbers(count: int):
+    """An argparse type: ``count`` comma-separated numbers."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            values = ()
+        if len(values) != count:
+            raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers, got {text!r}")
+        return values
+    return parse
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", type=Path)
@@ -34,6 +50,8 @@ def main() -> None:
     ap.add_argument("extractor", type=Path)
     ap.add_argument("out", type=Path)
     ap.add_argument("--split", default="val")
+    ap.add_argument("--settings", nargs="+", type=numbers(3), default=SETTINGS, metavar="r,w,σ")
+    ap.add_argument("--other", type=numbers(2), default=(3.0, 1.75), metavar="w,σ")
     args = ap.parse_args()
     gesture = load_model(args.run, "gesture")
     if not gesture.config.hears_timing:
@@ -50,7 +68,7 @@ def main() -> None:
     gt, _ = ev.score(np.asarray(ev.windows.motion, np.float32), None, 0)
     gt_stats = ev.motion_stats(np.asarray(ev.windows.motion, np.float32))
     rows.append(("ground truth", gt, gt_stats))
-    for r, w, s in SETTINGS + [("other", 3.0, 1.75)]:
+    for r, w, s in [*args.settings, ("other", *args.other)]:
         cfg.diffusion.residual_scale = 1.0 if r == "other" else r
         cfg.vae.timing_guidance, cfg.vae.output_smoothing = w, s
         stream = conds[-1][other] if r == "other" else conds[-1]

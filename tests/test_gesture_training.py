@@ -47,7 +47,9 @@ def trained(tmp_path_factory):
         assert out.returncode == 0, (variant, out.stderr[-2000:])
     out = subprocess.run(cli("train", "gesture", "--data", d / "cache", "--speech", d / "speech", "--out", d / "timing",
                              "--steps", 4, "--quiet", *SMALL, "--set", "model.denoiser.timing_tokens=10",
-                             "--set", "model.vae.timing_features=2"),
+                             "--set", "model.vae.timing_features=2", "--set", "model.vae.decoder_smoothing=1",
+                             "--set", "losses.vspeed=1", "--set", "losses.align_speed=1", "--set", "losses.vaccel=1",
+                             "--set", "losses.align_accel=1", "--log-every", 1),
                          capture_output=True, text=True)  # issue 18: the denoiser hears the speech's timing
     assert out.returncode == 0, out.stderr[-2000:]
     return d
@@ -64,6 +66,8 @@ def test_every_variant_trains_and_logs_its_terms(trained):
         assert logged == expected[variant], variant
         model = load_model(trained / variant, "gesture")
         assert model.config.variant == variant and model.extra["step"] == 4
+    header = (trained / "timing" / "logs" / "metrics.csv").read_text().splitlines()[0].split(",")
+    assert {"train/vspeed", "train/align_speed", "train/vaccel", "train/align_accel"} <= set(header)  # weighted
     means = load_model(trained / "joint", "gesture").extra["emotion_latent_means"]
     assert set(means) == {"neutral", "happiness"} and len(means["neutral"]) == 256
 
@@ -244,6 +248,31 @@ def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
     assert seam_statistics(*split_jumps(jumpy, starts_s))["max_seam_jump_m"] > 0.1
     kept = seam_statistics(*split_jumps(jumpy, starts_s, [57.3]))
     assert kept["max_seam_jump_m"] < 0.1 and kept["seam_jumps"] < stats["seam_jumps"]
+
+
+def test_joint_speed_loss_scores_speed_not_direction():
+    import torch
+
+    from emogesture.train.gesture import joint_speed_loss
+
+    g = torch.Generator().manual_seed(0)
+    path = torch.randn(2, 30, 4, 3, generator=g).cumsum(1) * 0.01  # metres
+    turned = path * torch.tensor([-1.0, 1.0, -1.0])  # the same strokes in other directions
+    assert joint_speed_loss(turned, path, 100.0).item() < 1e-6
+    slow, still = path * 0.5, path[:, :1].expand_as(path)
+    assert 0 < joint_speed_loss(slow, path, 100.0) < joint_speed_loss(still, path, 100.0)
+    jitter = path + 0.01 * torch.randn(path.shape, generator=g)  # fast, but not the motion's speed
+    assert joint_speed_loss(jitter, path, 100.0) > joint_speed_loss(slow, path, 100.0)
+    assert joint_speed_loss(turned, path, 100.0, order=2).item() < 1e-6
+    t = torch.arange(60.0) / 30
+    strokes = torch.stack([0.1 * torch.sin(3 * torch.pi * t), 0.05 * torch.cos(2 * torch.pi * t), 0 * t], -1)[None, :, None]
+    shaking = strokes + 0.004 * (-1) ** torch.arange(60.0)[None, :, None, None] * torch.tensor([0, 0, 1.0])
+    # shaking by 4 mm barely changes the speeds but not the accelerations; larger strokes the other way round
+    assert joint_speed_loss(shaking, strokes, 100.0, 2) > 5 * joint_speed_loss(shaking, strokes, 100.0, 1)
+    assert joint_speed_loss(1.5 * strokes, strokes, 100.0, 1) > 5 * joint_speed_loss(1.5 * strokes, strokes, 100.0, 2)
+    resting = still.clone().requires_grad_()  # zero speeds: a finite gradient (zero, from exact rest)
+    joint_speed_loss(resting, path, 100.0).backward()
+    assert torch.isfinite(resting.grad).all()
 
 
 def test_model_info_gesture_prints_the_paper_counts(capsys):

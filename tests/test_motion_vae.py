@@ -326,6 +326,29 @@ def test_timing_guidance_scales_the_streams_part_of_the_decoding():
         MotionVAEConfig(output_smoothing=-0.5)
 
 
+def test_decoder_smoothing_ends_the_decoder_in_training_and_generation():
+    from emogesture.models.motion_vae import gaussian_smooth
+
+    torch.manual_seed(0)
+    kw = dict(frames=40, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32, low_frequency_path=4)
+    sharp = MotionVAE(MotionVAEConfig(**kw))
+    smooth = MotionVAE(MotionVAEConfig(**kw, decoder_smoothing=1.5))
+    smooth.load_state_dict(sharp.state_dict())
+    torch.nn.init.normal_(sharp.low_frequency_out.weight)
+    torch.nn.init.normal_(sharp.decoder_output.weight)
+    smooth.load_state_dict(sharp.state_dict())
+    motion = torch.randn(2, 40, 282)
+    with torch.no_grad():
+        z = sharp.encode(motion, sample=False)[0]
+        torch.testing.assert_close(smooth.decode(z), gaussian_smooth(sharp.decode(z), 1.5))
+        rec, *_ = smooth(motion, sample=False)  # the training forward goes through it too
+        torch.testing.assert_close(rec, gaussian_smooth(sharp(motion, sample=False)[0], 1.5))
+    jitter = lambda x: (x[:, 2:] - 2 * x[:, 1:-1] + x[:, :-2]).abs().mean()  # noqa: E731
+    assert jitter(rec) < 0.5 * jitter(sharp.decode(z).detach())
+    with pytest.raises(ConfigError, match="decoder_smoothing"):
+        MotionVAEConfig(decoder_smoothing=-1)
+
+
 def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_the_papers():
     from emogesture.models.gesture import GestureModelConfig
 

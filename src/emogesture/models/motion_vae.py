@@ -90,6 +90,10 @@ class MotionVAEConfig:
     timing_guidance: float = 1.0
     #: Generation only: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
     output_smoothing: float = 0.0
+    #: σ, in frames, of a Gaussian smoothing that ends the decoder, in training and generation alike
+    #: (0 = none): a decoder trained through it cannot output frame-to-frame jitter, and learns strokes
+    #: that keep their speed after it (``output_smoothing`` at generation only costs that speed).
+    decoder_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token, self.latent_tokens) < 1:
@@ -101,10 +105,12 @@ class MotionVAEConfig:
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
-        if min(self.timing_features, self.timing_smoothing, self.timing_guidance, self.output_smoothing) < 0:
-            raise ConfigError(f"motion VAE: timing_features, timing_smoothing, timing_guidance and output_smoothing "
-                              f"must be ≥ 0, got {self.timing_features}, {self.timing_smoothing}, "
-                              f"{self.timing_guidance}, {self.output_smoothing}")
+        if min(self.timing_features, self.timing_smoothing, self.timing_guidance, self.output_smoothing,
+               self.decoder_smoothing) < 0:
+            raise ConfigError(f"motion VAE: timing_features, timing_smoothing, timing_guidance, output_smoothing "
+                              f"and decoder_smoothing must be ≥ 0, got {self.timing_features}, "
+                              f"{self.timing_smoothing}, {self.timing_guidance}, {self.output_smoothing}, "
+                              f"{self.decoder_smoothing}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -272,7 +278,8 @@ class MotionVAE(nn.Module):
         if self.low_frequency_out is not None:  # the same cosines, weighted by a Linear of z
             coefficients = self.low_frequency_out(z).reshape(z.shape[0], c.low_frequency_path, -1)
             out = out + torch.einsum("nf,bfe->bne", self.dct_basis[:n], coefficients)
-        return out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
+        out = out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
+        return gaussian_smooth(out, c.decoder_smoothing) if c.decoder_smoothing > 0 else out
 
     def _timing_tokens(self, timing: torch.Tensor | None, b: int, n: int) -> torch.Tensor:
         """The timing stream ``[B, >= n·k, F]`` grouped per query token: ``[B, n, k·F]``."""

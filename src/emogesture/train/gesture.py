@@ -37,7 +37,8 @@ from emogesture.pipeline.conditions import calibrate_residual, model_conditions,
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
-LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
+LOSS_TERMS = ("rec", "vrec", "vspeed", "vaccel", "kl", "ld", "align", "valign", "align_speed", "align_accel",
+              "audio_rec")
 
 
 @dataclass
@@ -48,6 +49,16 @@ class GestureLossWeights:
     ld: float = 1.0
     align: float = 1.0
     valign: float = 1.0
+    #: Smooth L1 between the joints' speeds (frame-to-frame displacement lengths, in the units of
+    #: ``joint_scale``) of the reconstruction (``vspeed``) or of the aligned sample (``align_speed``) and
+    #: of the motion (not in the paper; 0 = off). A speed has no direction, so a decoder that knows when
+    #: a stroke falls but not where it goes is not pulled to the average, motionless stroke.
+    vspeed: float = 0.0
+    align_speed: float = 0.0
+    #: The same for the lengths of the joints' accelerations (second differences): speed gained by
+    #: shaking back and forth costs acceleration the motion does not have.
+    vaccel: float = 0.0
+    align_accel: float = 0.0
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
 
@@ -112,6 +123,18 @@ class GestureTrainConfig:
         return cfg
 
 
+def joint_speed_loss(joints: torch.Tensor, target: torch.Tensor, scale: float = 1.0, order: int = 1) -> torch.Tensor:
+    """Smooth L1 between the lengths of the joints' ``order``-th differences over time (``order`` 1: speeds
+    ``|p[t+1] − p[t]|``, 2: accelerations) ``[B, T−order, J]`` of ``joints`` and ``target`` ``[B, T, J, 3]``,
+    in metres × ``scale`` per frame^order: the same speeds in any direction score 0."""
+    def length(p: torch.Tensor) -> torch.Tensor:
+        p = p * scale
+        for _ in range(order):
+            p = p[:, 1:] - p[:, :-1]
+        return p.square().sum(-1).add(1e-12).sqrt()  # ε: a finite gradient at rest
+    return F.smooth_l1_loss(length(joints), length(target))
+
+
 class GestureWindows(Dataset):
     """Normalised motion windows with their condition latents (and emotion labels)."""
 
@@ -155,6 +178,13 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         s = self.cfg.joint_scale
         return F.smooth_l1_loss(joints * s, target * s)
 
+    def motion_terms(self, losses: dict, prefix: str, joints: torch.Tensor, target: torch.Tensor) -> None:
+        """The speed and acceleration terms (:func:`joint_speed_loss`, units ``1 / joint_scale`` metres)
+        of the reconstruction (``prefix`` "v") or the aligned sample ("align_") that have a weight."""
+        for order, name in ((1, "speed"), (2, "accel")):
+            if getattr(self.cfg.losses, prefix + name):
+                losses[prefix + name] = joint_speed_loss(joints, target, self.cfg.joint_scale, order)
+
     def conditions(self, batch: dict) -> tuple[list[torch.Tensor], torch.Tensor | None]:
         conds = list(batch["conditions"])
         if self.model.audio_ae is None:
@@ -191,7 +221,9 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         if phase_prior:
             rec, z, mu, logvar = prior(m, generator=g, timing=stream)
             losses["rec"] = F.smooth_l1_loss(rec, m)
-            losses["vrec"] = self.joint_loss(self.joints(rec), joints_gt())
+            joints_rec = self.joints(rec)
+            losses["vrec"] = self.joint_loss(joints_rec, joints_gt())
+            self.motion_terms(losses, "v", joints_rec, joints_gt())
             if variant != "no_prior":
                 losses["kl"] = prior.kl_loss(mu, logvar)
         else:
@@ -210,7 +242,9 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                                       num_inference_steps=cfg.align_ddim_steps, eta=cfg.model.diffusion.eta)
                 m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1], timing=stream)
                 losses["align"] = F.smooth_l1_loss(m_tilde, m)
-                losses["valign"] = self.joint_loss(self.joints(m_tilde), joints_gt())
+                joints_tilde = self.joints(m_tilde)
+                losses["valign"] = self.joint_loss(joints_tilde, joints_gt())
+                self.motion_terms(losses, "align_", joints_tilde, joints_gt())
         if audio_rec is not None:
             losses["audio_rec"] = audio_rec
         total = sum(getattr(w, k) * v for k, v in losses.items())
