@@ -250,28 +250,28 @@ def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
     assert kept["max_seam_jump_m"] < 0.1 and kept["seam_jumps"] < stats["seam_jumps"]
 
 
-def test_joint_speed_loss_scores_speed_not_direction():
+def test_joint_difference_loss_scores_speed_not_direction():
     import torch
 
-    from emogesture.train.gesture import joint_speed_loss
+    from emogesture.train.gesture import joint_difference_loss
 
     g = torch.Generator().manual_seed(0)
     path = torch.randn(2, 30, 4, 3, generator=g).cumsum(1) * 0.01  # metres
     turned = path * torch.tensor([-1.0, 1.0, -1.0])  # the same strokes in other directions
-    assert joint_speed_loss(turned, path, 100.0).item() < 1e-6
+    assert joint_difference_loss(turned, path, 100.0).item() < 1e-6
     slow, still = path * 0.5, path[:, :1].expand_as(path)
-    assert 0 < joint_speed_loss(slow, path, 100.0) < joint_speed_loss(still, path, 100.0)
+    assert 0 < joint_difference_loss(slow, path, 100.0) < joint_difference_loss(still, path, 100.0)
     jitter = path + 0.01 * torch.randn(path.shape, generator=g)  # fast, but not the motion's speed
-    assert joint_speed_loss(jitter, path, 100.0) > joint_speed_loss(slow, path, 100.0)
-    assert joint_speed_loss(turned, path, 100.0, order=2).item() < 1e-6
+    assert joint_difference_loss(jitter, path, 100.0) > joint_difference_loss(slow, path, 100.0)
+    assert joint_difference_loss(turned, path, 100.0, order=2).item() < 1e-6
     t = torch.arange(60.0) / 30
     strokes = torch.stack([0.1 * torch.sin(3 * torch.pi * t), 0.05 * torch.cos(2 * torch.pi * t), 0 * t], -1)[None, :, None]
     shaking = strokes + 0.004 * (-1) ** torch.arange(60.0)[None, :, None, None] * torch.tensor([0, 0, 1.0])
     # shaking by 4 mm barely changes the speeds but not the accelerations; larger strokes the other way round
-    assert joint_speed_loss(shaking, strokes, 100.0, 2) > 5 * joint_speed_loss(shaking, strokes, 100.0, 1)
-    assert joint_speed_loss(1.5 * strokes, strokes, 100.0, 1) > 5 * joint_speed_loss(1.5 * strokes, strokes, 100.0, 2)
+    assert joint_difference_loss(shaking, strokes, 100.0, 2) > 5 * joint_difference_loss(shaking, strokes, 100.0, 1)
+    assert joint_difference_loss(1.5 * strokes, strokes, 100.0, 1) > 5 * joint_difference_loss(1.5 * strokes, strokes, 100.0, 2)
     resting = still.clone().requires_grad_()  # zero speeds: a finite gradient (zero, from exact rest)
-    joint_speed_loss(resting, path, 100.0).backward()
+    joint_difference_loss(resting, path, 100.0).backward()
     assert torch.isfinite(resting.grad).all()
 
 

@@ -123,7 +123,8 @@ class GestureTrainConfig:
         return cfg
 
 
-def joint_speed_loss(joints: torch.Tensor, target: torch.Tensor, scale: float = 1.0, order: int = 1) -> torch.Tensor:
+def joint_difference_loss(joints: torch.Tensor, target: torch.Tensor, scale: float = 1.0,
+                          order: int = 1) -> torch.Tensor:
     """Smooth L1 between the lengths of the joints' ``order``-th differences over time (``order`` 1: speeds
     ``|p[t+1] − p[t]|``, 2: accelerations) ``[B, T−order, J]`` of ``joints`` and ``target`` ``[B, T, J, 3]``,
     in metres × ``scale`` per frame^order: the same speeds in any direction score 0."""
@@ -179,11 +180,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         return F.smooth_l1_loss(joints * s, target * s)
 
     def motion_terms(self, losses: dict, prefix: str, joints: torch.Tensor, target: torch.Tensor) -> None:
-        """The speed and acceleration terms (:func:`joint_speed_loss`, units ``1 / joint_scale`` metres)
+        """The speed and acceleration terms (:func:`joint_difference_loss`, units ``1 / joint_scale`` metres)
         of the reconstruction (``prefix`` "v") or the aligned sample ("align_") that have a weight."""
         for order, name in ((1, "speed"), (2, "accel")):
             if getattr(self.cfg.losses, prefix + name):
-                losses[prefix + name] = joint_speed_loss(joints, target, self.cfg.joint_scale, order)
+                losses[prefix + name] = joint_difference_loss(joints, target, self.cfg.joint_scale, order)
 
     def conditions(self, batch: dict) -> tuple[list[torch.Tensor], torch.Tensor | None]:
         conds = list(batch["conditions"])
