@@ -4,9 +4,9 @@ swept on the val texts: timing guidance w (``vae.timing_guidance``), output smoo
 trained model, the same seeds and the same evaluator for every row; writes a markdown table.
 
 Usage: timing_guidance_sweep.py GESTURE_RUN CACHE EXTRACTOR_RUN OUT.md [--split val]
-       [--settings r,w,σ ...] [--other w,σ]
-(``--settings``: the rows to generate, default the sweep below; ``--other``: the setting of the last row,
-which reads another window's timing stream.)
+       [--settings r,w,σ ...] [--other w,σ] [--seed N]
+(``--seed``: the sampling seed of every row, default 0; ``--settings``: the rows to generate, default the
+sweep below; ``--other``: the setting of the last row, which reads another window's timing stream.)
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ def main() -> None:
     ap.add_argument("--split", default="val")
     ap.add_argument("--settings", nargs="+", type=numbers(3), default=SETTINGS, metavar="r,w,σ")
     ap.add_argument("--other", type=numbers(2), default=(3.0, 1.75), metavar="w,σ")
+    ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     gesture = load_model(args.run, "gesture")
     if not gesture.config.hears_timing:
@@ -60,7 +61,7 @@ def main() -> None:
     use = split_use(args.split, {"gesture": gesture, "speech": speech.loaded})
     cache = open_cache(args.cache)
     conds = model_conditions(gesture, cache, args.split, speech)
-    seeds = window_seeds(0, len(conds[0]))
+    seeds = window_seeds(args.seed, len(conds[0]))
     other = other_window_pairs(cache.split(args.split).text, 0, 1)[0]
     ev = GestureEvaluator(cache, args.split, load_model(args.extractor, "extractor"))
     cfg = gesture.config
@@ -80,7 +81,7 @@ def main() -> None:
         rows.append((name, row, ev.motion_stats(motion)))
         print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}), flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
-             f"Split use: {json.dumps(use)}. One trained model; every row the same seeds (0) and evaluator. "
+             f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`); GT's gain / spread is in the gesture report.", "",
              "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | right wrist (rad/frame) |",

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The two pictures the README shows, from the bundled model as installed (run after `make model`):
+#   docs/demo.png: a frame at 12.5 s of `make demo`'s first video (the shipped speech clip, seed 0);
+#   experiments/reports/motion/contact_sheet.png: a pose every second (2–7 s) of test take 2_scott_0_4_4,
+#     corpus v3 against corpus v2 and the bundled model's animation of the same speech (issue 17).
+# Both are replaced. Usage: experiments/docs_images.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+EG=.venv/bin/emogesture
+OUT=outputs/docs_images
+TAKE=2_scott_0_4_4
+mkdir -p "$OUT"
+$EG generate src/emogesture/assets/demo/talk.flac -o "$OUT" --format mp4 --overwrite --quiet
+ffmpeg -loglevel error -y -ss 12.5 -i "$OUT/talk_seed0_0.mp4" -frames:v 1 "$OUT/demo.png"
+mv "$OUT/demo.png" docs/demo.png
+$EG generate "outputs/demo/corpus/wave16k/$TAKE.wav" -o "$OUT" --format npz --overwrite --quiet
+.venv/bin/python experiments/contact_sheet.py experiments/reports/motion/contact_sheet.png --overwrite \
+    "corpus v3\n(issue 17)=outputs/demo/corpus/smplxflame_30/$TAKE.npz" \
+    "corpus v2\n(before)=outputs/demo/corpus_v2/smplxflame_30/$TAKE.npz" \
+    "generated\n(bundled model,\ntrained on v3)=$OUT/${TAKE}_seed0_0.npz"
