@@ -333,7 +333,6 @@ def test_decoder_smoothing_ends_the_decoder_in_training_and_generation():
     kw = dict(frames=40, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32, low_frequency_path=4)
     sharp = MotionVAE(MotionVAEConfig(**kw))
     smooth = MotionVAE(MotionVAEConfig(**kw, decoder_smoothing=1.5))
-    smooth.load_state_dict(sharp.state_dict())
     torch.nn.init.normal_(sharp.low_frequency_out.weight)
     torch.nn.init.normal_(sharp.decoder_output.weight)
     smooth.load_state_dict(sharp.state_dict())
