@@ -74,3 +74,23 @@ def test_missing_take_in_a_source_names_the_file(trained, tmp_path):
                          capture_output=True, text=True)
     assert out.returncode == 2 and "missing" in out.stderr and ".npz" in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
+
+
+def test_the_extractor_reads_the_rotations_the_body_shows(trained):
+    """A decoder's 6D output need not be orthonormal; what is scored is the rotation it stands for."""
+    from emogesture.checkpoints import load_model
+    from emogesture.data.cache import open_cache
+    from emogesture.eval.gesture import GestureEvaluator
+
+    ev = GestureEvaluator(open_cache(trained / "cache"), "test", load_model(trained / "ext", "extractor"))
+    gt = np.asarray(ev.windows.motion, np.float32)
+    n = gt.shape[-1] // 6
+    six = gt.reshape(*gt.shape[:-1], n, 2, 3)
+    rng = np.random.default_rng(0)
+    scale = rng.uniform(0.5, 2.0, size=(*six.shape[:-1], 1)).astype(np.float32)  # each column's own length
+    skewed = six * scale
+    skewed[..., 1, :] += 0.3 * skewed[..., 0, :]  # and the second column leaning on the first
+    skewed = skewed.reshape(gt.shape)
+    row, _ = ev.score(skewed)
+    own, _ = ev.score(gt)
+    assert row["FGD"] < 1e-3 and row["GA"] == own["GA"] and row["Speed"] == pytest.approx(own["Speed"], rel=1e-4)

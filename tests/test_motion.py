@@ -78,6 +78,33 @@ def test_interpolate_rotations():
     assert torch.allclose(ramp[-1], matrix_to_rot6d(b[-1]), atol=1e-6)
 
 
+def test_guide_features_extrapolates_but_never_turns_a_column_round():
+    from emogesture.motion import GUIDANCE_FLOOR, guide_features
+
+    spec = MotionFeatureSpec(joints=(16, 18), include_translation=True)
+    plain = torch.cat([matrix_to_rot6d(axis_angle_to_matrix(random_axis_angle((40, 2), seed=6))).reshape(40, 12),
+                       torch.randn(40, 3, dtype=torch.float64)], -1)
+    heard = plain + 0.02 * torch.randn(40, 15, dtype=torch.float64)  # a small timing part: plain extrapolation
+    torch.testing.assert_close(guide_features(plain, heard, 3.0, spec), plain + 3 * (heard - plain))
+    torch.testing.assert_close(guide_features(plain, heard, 0.5, spec), plain + 0.5 * (heard - plain))
+    # an elbow whose heard decoding is the plain one shortened to 0.6 and turned a little: extrapolated as
+    # numbers by 3, its first column points backwards (a half-turn flip); guided, it stays ahead
+    turn = axis_angle_to_matrix(torch.tensor([[0.0, 0.05, 0.0]], dtype=torch.float64))[0]
+    short = heard.clone()
+    short[:, 6:9] = 0.6 * plain[:, 6:9] @ turn.T
+    linear = plain + 3 * (short - plain)
+    guided = guide_features(plain, short, 3.0, spec)
+    ahead = lambda x: (x[:, 6:9] * plain[:, 6:9]).sum(-1) / (plain[:, 6:9] ** 2).sum(-1)
+    assert (ahead(linear) < 0).all() and (ahead(guided) >= GUIDANCE_FLOOR - 1e-9).all()
+    torch.testing.assert_close(guided[:, :6], linear[:, :6])  # the other joint keeps its full guidance
+    # the lowered guidance changes continuously: a slightly shorter column moves the output slightly
+    shorter = short.clone()
+    shorter[:, 6:9] *= 0.999
+    assert (guide_features(plain, shorter, 3.0, spec) - guided).abs().max() < 0.01
+    with pytest.raises(ValueError, match="features must both be"):
+        guide_features(plain, heard[:, :14], 2.0, spec)
+
+
 # --- skeleton and features -------------------------------------------------------------------
 
 

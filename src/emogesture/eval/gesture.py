@@ -31,7 +31,7 @@ from emogesture.eval.metrics import (
     METRIC_CONSTANTS, beat_align, diversity, frechet_distance, motion_beats, srgr, wrist_jerk, wrist_speed,
 )
 from emogesture.eval.plots import save_confusion_matrix
-from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
+from emogesture.motion import MotionFeatureSpec, SkeletonBody, canonical_features, features_to_poses
 
 COLUMNS = ("SRGR", "BA", "FGD", "Div", "GA", "Jerk", "Speed", "Rhythm")
 
@@ -88,10 +88,12 @@ class GestureEvaluator:
 
     @torch.no_grad()
     def embed(self, motion: np.ndarray, batch_size: int = 64) -> Embedded:
-        """Raw features ``[W, T, D]`` -> extractor features, logits and joint positions."""
+        """Raw features ``[W, T, D]`` -> extractor features, logits and joint positions. The extractor
+        reads the rotations the body shows (:func:`~emogesture.motion.canonical_features`), never 6D
+        numbers off the rotation manifold that a decoder may output and no body displays."""
         feats, logits, joints = [], [], []
         for i in range(0, len(motion), batch_size):
-            x = torch.from_numpy(np.array(motion[i : i + batch_size], np.float32))
+            x = canonical_features(torch.from_numpy(np.array(motion[i : i + batch_size], np.float32)), self.spec)
             f, lg = self.extractor.model((x - self.mean) / self.std)
             feats.append(f.numpy())
             logits.append(lg.numpy())

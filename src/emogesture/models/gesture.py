@@ -105,8 +105,7 @@ class LinearMotionMap(nn.Module):
         z = self.down(motion.reshape(motion.shape[0], -1))
         return z, z, torch.zeros_like(z)
 
-    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None,
-               guidance: float = 1.0) -> torch.Tensor:
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
         return self.up(z).reshape(z.shape[0], self.config.frames, self.config.feature_dim)
 
     def forward(self, motion: torch.Tensor, generator=None, sample: bool = True, timing=None):

@@ -86,7 +86,8 @@ class MotionVAEConfig:
     timing_smoothing: float = 0.0
     #: Generation only (training reconstructs with ``w = 1``): the decoder's output is
     #: ``D(z, zeros) + w · (D(z, stream) − D(z, zeros))``, the timing stream's part scaled by ``w``
-    #: (guidance on the stream, as classifier-free guidance does on a condition). See :meth:`MotionVAE.decode`.
+    #: (guidance on the stream, as classifier-free guidance does on a condition), with ``w`` lowered
+    #: where a joint's 6D column would turn round (:func:`emogesture.motion.guide_features`).
     timing_guidance: float = 1.0
     #: Generation only: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
     output_smoothing: float = 0.0
@@ -244,20 +245,22 @@ class MotionVAE(nn.Module):
         eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
         return mu + torch.exp(0.5 * logvar) * eps, mu, logvar
 
-    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None,
-               guidance: float = 1.0) -> torch.Tensor:
+    def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:
         """``z [B, 256] -> motion [B, T, 282]`` with ``T = frames`` (default: the configured maximum);
-        ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``.
-
-        ``guidance = w``: ``D(z, 0) + w · (D(z, timing) − D(z, 0))`` (a zero stream is what a silent
-        window gives; both decodings run as one batch). ``w = 1`` is the plain decoder, as trained.
-        """
-        if guidance != 1.0 and self.timing_to_query is not None:
-            both = self._decode(torch.cat([z, z]), frames, None if timing is None else
-                                torch.cat([timing, torch.zeros_like(timing)]))
-            guided, plain = both[: len(z)], both[len(z):]
-            return plain + guidance * (guided - plain)
+        ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``."""
         return self._decode(z, frames, timing)
+
+    def decode_pair(self, z: torch.Tensor, frames: int | None = None,
+                    timing: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """The decoding with the timing stream and with a zero stream (what a silent window gives), run
+        as one batch: ``(heard [B, T, 282], deaf [B, T, 282])``. Timing guidance (``timing_guidance``)
+        extrapolates from ``deaf`` through ``heard``; the pipeline does it in raw feature units, where
+        the 6D columns live (:func:`emogesture.motion.guide_features`).
+        """
+        if timing is None:
+            raise ValueError("decode_pair needs the timing stream")
+        both = self._decode(torch.cat([z, z]), frames, torch.cat([timing, torch.zeros_like(timing)]))
+        return both[: len(z)], both[len(z):]
 
     def _decode(self, z: torch.Tensor, frames: int | None, timing: torch.Tensor | None) -> torch.Tensor:
         c = self.config

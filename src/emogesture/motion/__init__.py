@@ -2,9 +2,12 @@
 
 from emogesture.motion.body import SkeletonBody, SMPLXBody, load_body
 from emogesture.motion.features import (
+    GUIDANCE_FLOOR,
     FeatureStats,
     MotionFeatureSpec,
+    canonical_features,
     features_to_matrices,
+    guide_features,
     features_to_poses,
     poses_to_features,
 )
@@ -38,6 +41,7 @@ __all__ = [
     "PARENTS",
     "UPPER_BODY_JOINTS",
     "WRIST_JOINTS",
+    "GUIDANCE_FLOOR",
     "FeatureStats",
     "MotionFeatureSpec",
     "OutputExistsError",
@@ -45,9 +49,11 @@ __all__ = [
     "SkeletonBody",
     "axis_angle_to_matrix",
     "axis_angle_to_rot6d",
+    "canonical_features",
     "euler_zyx_to_matrix",
     "features_to_matrices",
     "features_to_poses",
+    "guide_features",
     "interpolate_rotations",
     "load_body",
     "load_smplx_npz",

@@ -8,7 +8,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from emogesture.motion.rotations import axis_angle_to_rot6d, rot6d_to_axis_angle, rot6d_to_matrix
+from emogesture.motion.rotations import (
+    axis_angle_to_rot6d, matrix_to_rot6d, rot6d_to_axis_angle, rot6d_to_matrix,
+)
 from emogesture.motion.skeleton import UPPER_BODY_JOINTS
 from emogesture.types import NUM_JOINTS
 
@@ -84,6 +86,58 @@ def features_to_poses(
     poses = poses.index_copy(-2, index, selected)
     trans = features[..., 6 * n :] if spec.include_translation else None
     return poses, trans
+
+
+def canonical_features(features: torch.Tensor, spec: MotionFeatureSpec | None = None) -> torch.Tensor:
+    """Features ``[..., dim]`` with each joint's 6D numbers replaced by those of the rotation they stand
+    for (its two orthonormalised columns, as every reader of the features turns them into a rotation);
+    the translation unchanged. A decoder's raw 6D output need not be orthonormal: what a body shows is
+    this, and anything scored on features (an extractor's emotion, FGD) should read this.
+    """
+    spec = spec or MotionFeatureSpec()
+    if features.shape[-1] != spec.dim:
+        raise ValueError(f"features must be [..., {spec.dim}], got {tuple(features.shape)}")
+    n = len(spec.joints)
+    lead = features.shape[:-1]
+    rot = matrix_to_rot6d(rot6d_to_matrix(features[..., : 6 * n].reshape(*lead, n, 6))).reshape(*lead, 6 * n)
+    return torch.cat([rot, features[..., 6 * n :]], dim=-1)
+
+
+#: :func:`guide_features`: no 6D column may shrink, along its unguided direction, below this share of it.
+GUIDANCE_FLOOR = 0.5
+
+
+def guide_features(
+    plain: torch.Tensor, heard: torch.Tensor, w: float, spec: MotionFeatureSpec | None = None,
+    floor: float = GUIDANCE_FLOOR,
+) -> torch.Tensor:
+    """Guidance on 6D features ``[..., dim]``: ``plain + w · (heard − plain)``, with ``w`` lowered (never
+    below 1) per joint and frame where a 6D column would otherwise reverse.
+
+    Extrapolated as numbers, a column ``c = p + w · (h − p)`` passes through zero and turns round when
+    ``h`` is shorter than ``p`` along ``p`` (``h · p < (1 − 1/w) |p|²``): the joint flips by half a turn
+    for a frame or two. Here each joint's ``w`` is the largest (up to ``w``) that keeps
+    ``c · p >= floor · |p|²`` for both its columns; it changes continuously with the decodings, so the
+    motion stays continuous, and elsewhere the result is the plain extrapolation. The translation, if
+    any, is extrapolated with the same ``w``.
+    """
+    spec = spec or MotionFeatureSpec()
+    if plain.shape != heard.shape or plain.shape[-1] != spec.dim:
+        raise ValueError(f"features must both be [..., {spec.dim}], got {tuple(plain.shape)} and {tuple(heard.shape)}")
+    if w <= 1.0:
+        return plain + w * (heard - plain)
+    n = len(spec.joints)
+    lead = plain.shape[:-1]
+    p, h = plain[..., : 6 * n].reshape(*lead, n, 2, 3), heard[..., : 6 * n].reshape(*lead, n, 2, 3)
+    pp = (p * p).sum(-1)  # [..., n, 2]
+    shrink = (pp - (h * p).sum(-1)).clamp_min(1e-12)  # how much h falls short of p along p
+    largest = ((1.0 - floor) * pp / shrink).amin(-1, keepdim=True)  # [..., n, 1]
+    wj = largest.clamp(1.0, w).unsqueeze(-1)  # [..., n, 1, 1]
+    rot = (p + wj * (h - p)).reshape(*lead, 6 * n)
+    parts = [rot]
+    if spec.include_translation:
+        parts.append(plain[..., 6 * n :] + w * (heard[..., 6 * n :] - plain[..., 6 * n :]))
+    return torch.cat(parts, dim=-1)
 
 
 def features_to_matrices(

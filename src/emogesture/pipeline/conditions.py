@@ -17,6 +17,7 @@ import torch
 from emogesture.audio import mfcc_from_log_mel
 from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel
+from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache
 from emogesture.diffusion.residual import add_residual_noise, residual_factor
@@ -24,6 +25,7 @@ from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
 from emogesture.models.motion_vae import gaussian_smooth
+from emogesture.motion import MotionFeatureSpec, guide_features
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.runtime import autocast
 
@@ -148,12 +150,20 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     reads = vae.timing_features > 0
     guidance = vae.timing_guidance if generation and reads else 1.0
     smoothing = vae.output_smoothing if generation else 0.0
+    spec = from_dict(MotionFeatureSpec, gesture.extra["features"]) if guidance != 1.0 else None
     out = []
     for i in range(0, len(z), batch_size):
         stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
                   if reads and timing is not None else None)
         with autocast(precision, z.device):
-            x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream, guidance=guidance).float()
+            if guidance != 1.0 and stream is not None:
+                heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
+            else:
+                x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
+        if guidance != 1.0 and stream is not None:  # in raw feature units, where the 6D columns live
+            m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
+            x = (guide_features(deaf.float() * s + m, heard.float() * s + m, guidance, spec) - m) / s
+        x = x.float()
         if smoothing > 0:
             x = gaussian_smooth(x, smoothing)
         out.append(x.cpu().numpy())
