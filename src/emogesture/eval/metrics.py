@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy import linalg
 from scipy.signal import argrelextrema
 
 from emogesture.motion.skeleton import ARM_JOINTS, UPPER_BODY_JOINTS, WRIST_JOINTS
@@ -50,9 +49,10 @@ def frechet_from_stats(mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sig
     """Fréchet distance ``|mu1-mu2|^2 + tr(S1 + S2 - 2 (S1 S2)^1/2)`` with ``S = sigma + eps*I``.
 
     ``mu`` are ``[D]``, ``sigma`` are ``[D, D]``. ``eps*I`` is always added to both covariances (it keeps
-    the product square root defined for rank-deficient sets). The square root is
-    ``scipy.linalg.sqrtm`` of the (non-symmetric) product; an imaginary part that is numerical noise
-    (max |imag| <= 1e-3 * max(1, |real|)) is dropped, a larger one raises ``ValueError``. The result is
+    the product square root defined for rank-deficient sets). ``tr (S1 S2)^1/2`` is computed as the sum of
+    the square roots of the eigenvalues of the symmetric ``S1^1/2 S2 S1^1/2`` (the same eigenvalues as
+    ``S1 S2``), which stays real and defined where a general matrix square root of the product can fail
+    (``scipy.linalg.sqrtm`` raised an internal error on one set of 128-wide features). The result is
     clipped at 0 from below (tiny negative values are round-off).
     """
     mu1, mu2 = np.atleast_1d(np.asarray(mu1, np.float64)), np.atleast_1d(np.asarray(mu2, np.float64))
@@ -62,14 +62,12 @@ def frechet_from_stats(mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sig
         raise ValueError(f"shape mismatch: mu {mu1.shape} {mu2.shape}, sigma {s1.shape} {s2.shape}")
     eye = np.eye(d)
     s1, s2 = s1 + eps * eye, s2 + eps * eye
-    covmean = linalg.sqrtm(s1 @ s2)
-    if np.iscomplexobj(covmean):
-        scale = max(1.0, float(np.abs(covmean.real).max()))
-        if np.abs(covmean.imag).max() > 1e-3 * scale:
-            raise ValueError(f"sqrtm has a large imaginary part ({np.abs(covmean.imag).max():.3g})")
-        covmean = covmean.real
+    w1, v1 = np.linalg.eigh(s1)
+    root1 = (v1 * np.sqrt(np.clip(w1, 0.0, None))) @ v1.T
+    middle = root1 @ s2 @ root1
+    trace_covmean = float(np.sqrt(np.clip(np.linalg.eigvalsh((middle + middle.T) / 2), 0.0, None)).sum())
     diff = mu1 - mu2
-    value = diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * np.trace(covmean)
+    value = diff @ diff + np.trace(s1) + np.trace(s2) - 2.0 * trace_covmean
     return float(max(value, 0.0))
 
 
