@@ -141,7 +141,8 @@ def seam_statistics(seam: np.ndarray, inside: np.ndarray) -> dict:
     seam jumps above it (about 0.01 when seams move like the rest); and the largest jump of all, seam or
     inside (a joint that flips inside a window shows only there)."""
     p99 = float(np.percentile(inside, 99))
-    return {"max_jump_m": float(max(seam.max(), inside.max())), "max_seam_jump_m": float(seam.max()), "p99_seam_jump_m": float(np.percentile(seam, 99)),
+    return {"max_jump_m": float(max(seam.max(), inside.max())), "max_seam_jump_m": float(seam.max()),
+            "p99_seam_jump_m": float(np.percentile(seam, 99)),
             "p99_inside_jump_m": p99, "seam_jumps": int(len(seam)), "inside_jumps": int(len(inside)),
             "seam_share_above_p99": float((seam > p99).mean())}
 

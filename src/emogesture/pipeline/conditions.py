@@ -150,18 +150,20 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     reads = vae.timing_features > 0
     guidance = vae.timing_guidance if generation and reads else 1.0
     smoothing = vae.output_smoothing if generation else 0.0
-    spec = from_dict(MotionFeatureSpec, gesture.extra["features"]) if guidance != 1.0 else None
+    guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
+    if guided:
+        spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
+        m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
     out = []
     for i in range(0, len(z), batch_size):
         stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
                   if reads and timing is not None else None)
         with autocast(precision, z.device):
-            if guidance != 1.0 and stream is not None:
+            if guided:
                 heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
             else:
                 x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
-        if guidance != 1.0 and stream is not None:  # in raw feature units, where the 6D columns live
-            m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
+        if guided:
             x = (guide_features(deaf.float() * s + m, heard.float() * s + m, guidance, spec) - m) / s
         x = x.float()
         if smoothing > 0:
