@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The tiny gesture model (joint training, the paper's model) against its three ablations (disjoint
 # training, no motion prior, no audio disentanglement) on the default synthetic corpus, on this CPU.
-# "Ours" is the bundled model's run (experiments/bundled_model.sh, trained when missing): its speech
-# model trained on the train texts only, its extractor M, its gesture model. The ablations train here
-# on the same speech model, train texts only; every model's residual noise is calibrated on val.
+# "Ours" is the model shipped in the package (src/emogesture/assets/model/, built by
+# experiments/bundled_model.sh = `make model`, float16 weights as shipped): its speech model trained
+# on the train texts only, its extractor M, its gesture model. The ablations train here on that same
+# speech model, train texts only; every model's residual noise is calibrated on val.
 # Comparisons are made on the val split (calibrated on, never trained on); the test split is scored
 # once, for the report (paper Table 1 layout plus the prior's reconstruction error, emotion edits and a
 # 65-s long-audio seam check, each check able to fail).
@@ -19,9 +20,8 @@ STEPS=${1:-900}
 JOINT_STEPS=${2:-1200}
 source experiments/common.sh
 REPORT=experiments/reports/gesture_model
-BUNDLED=$WORK/bundled
-grep -qs '"step": 1200' "$BUNDLED/gesture/model.json" || bash experiments/bundled_model.sh
-SPEECH=$BUNDLED/speech
+BUNDLE=src/emogesture/assets/model
+SPEECH=$BUNDLE/speech.json
 mkdir -p "$REPORT"
 
 train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> on one thread, writes its wall time
@@ -39,22 +39,23 @@ train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> 
 # "ours without the stream" (issue 18): the tiny design before it, 48 cosines and no timing stream
 train disjoint disjoint "$JOINT_STEPS" & train no_prior no_prior "$STEPS" & train no_audio no_audio "$STEPS" &
 train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set model.vae.timing_features=0 \
-    --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 &
+    --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 \
+    --set model.vae.output_lowpass_hz=0 &
 wait
-{ grep gesture "$BUNDLED/times.txt" | sed 's/^gesture/joint (ours, the bundled run)/'
+{ grep '^gesture' experiments/reports/bundled_model/training_time.txt | sed 's/^gesture/joint (ours, the bundled model)/'
   for f in "$WORK"/gesture_{no_stream,disjoint,no_prior,no_audio}.time; do if [ -f "$f" ]; then cat "$f"; fi; done
 } | tee "$REPORT/training_time.txt"
 
-MODELS=(--model "ours=$BUNDLED/gesture" --model "ours without the stream=$WORK/gesture_no_stream"
+MODELS=(--model "ours=$BUNDLE/gesture.json" --model "ours without the stream=$WORK/gesture_no_stream"
         --model "disjoint=$WORK/gesture_disjoint"
         --model "no prior=$WORK/gesture_no_prior" --model "no audio model=$WORK/gesture_no_audio")
 for split in val test; do
-    $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLED/extractor" --split "$split" \
+    $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split "$split" \
         --out "$REPORT/$split" --overwrite "${MODELS[@]}"
 done
 # three more sampling seeds on val (no long audio): the seed spread of every row
 for seed in 1 2 3; do
-    $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLED/extractor" --split val --seed "$seed" \
+    $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split val --seed "$seed" \
         --long-audio 0 --out "$WORK/gesture_model_val_seed$seed" --overwrite "${MODELS[@]}"
 done
 .venv/bin/python experiments/seed_summary.py "$REPORT/val/gesture_models_val.json" \

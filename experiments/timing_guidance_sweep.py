@@ -1,10 +1,11 @@
 """The generation settings of a gesture model whose decoder hears the speech's timing (issue 18),
 swept on the val texts: timing guidance w (``vae.timing_guidance``), output smoothing σ in frames
-(``vae.output_smoothing``) and the residual-noise scale r (``diffusion.residual_scale``). The same
-trained model, the same seeds and the same evaluator for every row; writes a markdown table.
+(``vae.output_smoothing``), the output low-pass's cutoff c in Hz (``vae.output_lowpass_hz``, 0 = off)
+and the residual-noise scale r (``diffusion.residual_scale``). The same trained model, the same seeds
+and the same evaluator for every row; writes a markdown table.
 
 Usage: timing_guidance_sweep.py GESTURE_RUN CACHE EXTRACTOR_RUN OUT.md [--split val]
-       [--settings r,w,σ ...] [--other w,σ] [--seed N]
+       [--settings r,w,σ[,c] ...] [--other w,σ[,c]] [--seed N]
 (``--seed``: the sampling seed of every row, default 0; ``--settings``: the rows to generate, default the
 sweep below; ``--other``: the setting of the last row, which reads another window's timing stream.)
 """
@@ -24,22 +25,24 @@ from emogesture.eval.rhythm import other_window_pairs
 from emogesture.pipeline.conditions import generate_from_conditions, model_conditions, window_seeds
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
-# (r, w, σ): the trained decoder as it is, then guidance alone, then guidance with smoothing
+# (r, w, σ, c): the trained decoder as it is, then guidance alone, then guidance with smoothing, then the low-pass
 SETTINGS = [(1.0, 1.0, 0.0), (0.0, 1.0, 0.0), (0.0, 2.0, 0.0), (0.0, 3.0, 0.0), (1.0, 2.0, 0.0), (1.0, 3.0, 0.0),
             (1.0, 2.0, 1.5), (1.0, 3.0, 1.0), (1.0, 3.0, 1.5), (1.0, 3.0, 1.75), (1.0, 3.0, 2.0), (1.0, 3.5, 1.75),
-            (1.0, 3.5, 2.0), (1.0, 4.0, 2.0), (0.5, 3.0, 1.5), (1.5, 3.0, 1.5)]
+            (1.0, 3.5, 2.0), (1.0, 4.0, 2.0), (0.5, 3.0, 1.5), (1.5, 3.0, 1.5), (1.0, 4.0, 0.0, 2.5),
+            (1.0, 4.0, 0.0, 2.75)]
+SETTINGS = [s if len(s) == 4 else (*s, 0.0) for s in SETTINGS]
 
 
 def numbers(count: int):
-    """An argparse type: ``count`` comma-separated numbers."""
+    """An argparse type: ``count`` comma-separated numbers, and an optional last one (the cutoff c, default 0)."""
     def parse(text: str) -> tuple[float, ...]:
         try:
             values = tuple(float(v) for v in text.split(","))
         except ValueError:
             values = ()
-        if len(values) != count:
-            raise argparse.ArgumentTypeError(f"expected {count} comma-separated numbers, got {text!r}")
-        return values
+        if len(values) not in (count, count + 1):
+            raise argparse.ArgumentTypeError(f"expected {count} or {count + 1} comma-separated numbers, got {text!r}")
+        return values if len(values) > count else (*values, 0.0)
     return parse
 
 
@@ -50,8 +53,8 @@ def main() -> None:
     ap.add_argument("extractor", type=Path)
     ap.add_argument("out", type=Path)
     ap.add_argument("--split", default="val")
-    ap.add_argument("--settings", nargs="+", type=numbers(3), default=SETTINGS, metavar="r,w,σ")
-    ap.add_argument("--other", type=numbers(2), default=(3.0, 1.75), metavar="w,σ")
+    ap.add_argument("--settings", nargs="+", type=numbers(3), default=SETTINGS, metavar="r,w,σ[,c]")
+    ap.add_argument("--other", type=numbers(2), default=(4.0, 0.0, 2.75), metavar="w,σ[,c]")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     gesture = load_model(args.run, "gesture")
@@ -69,20 +72,21 @@ def main() -> None:
     gt, _ = ev.score(np.asarray(ev.windows.motion, np.float32), None, 0)
     gt_stats = ev.motion_stats(np.asarray(ev.windows.motion, np.float32))
     rows.append(("ground truth", gt, gt_stats))
-    for r, w, s in [*args.settings, ("other", *args.other)]:
+    for r, w, s, c in [*args.settings, ("other", *args.other)]:
         cfg.diffusion.residual_scale = 1.0 if r == "other" else r
-        cfg.vae.timing_guidance, cfg.vae.output_smoothing = w, s
+        cfg.vae.timing_guidance, cfg.vae.output_smoothing, cfg.vae.output_lowpass_hz = w, s, c
         stream = conds[-1][other] if r == "other" else conds[-1]
         motion = generate_from_conditions(gesture, [*conds[:-1], stream], seeds,
                                           residual=cfg.diffusion.residual_scale > 0)
         row, _ = ev.score(motion, None, 0)
-        name = (f"r 1, w {w:g}, σ {s:g}, the stream of another window" if r == "other"
-                else f"r {r:g}, w {w:g}, σ {s:g}")
+        setting = f"w {w:g}, σ {s:g}" + (f", low-pass {c:g} Hz" if c else "")
+        name = (f"r 1, {setting}, the stream of another window" if r == "other" else f"r {r:g}, {setting}")
         rows.append((name, row, ev.motion_stats(motion)))
         print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}), flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
              f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
-             "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames). Rhythm: rhythm gain "
+             "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
+             "low-pass's cutoff (`vae.output_lowpass_hz`). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`); GT's gain / spread is in the gesture report.", "",
              "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | right wrist (rad/frame) |",
              "|---|---|---|---|---|---|---|---|"]

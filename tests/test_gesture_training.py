@@ -308,19 +308,21 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     own = generate_from_conditions(model, conds, seeds, residual=False)
     other = generate_from_conditions(model, [*conds[:3], np.roll(conds[3], 40, axis=1)], seeds, residual=False)
     assert not np.allclose(own, other)  # the stream changes the motion, all else equal
-    # the generation settings (guidance, output smoothing) act at generation only, never on the prior's
-    # reconstruction; smoothing lowers the frame-to-frame change
-    assert (model.config.vae.timing_guidance, model.config.vae.output_smoothing) == (3.0, 1.75)  # the tiny preset's
+    # the generation settings (guidance, output smoothing and low-pass) act at generation only, never on
+    # the prior's reconstruction; smoothing and the low-pass lower the frame-to-frame change
     vae = model.config.vae
+    assert (vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz) == (4.0, 0.0, 2.75)  # the tiny preset's
     made = {}
-    for vae.timing_guidance, vae.output_smoothing in ((1.0, 0.0), (3.0, 0.0), (1.0, 2.0)):
-        made[vae.timing_guidance, vae.output_smoothing] = generate_from_conditions(model, conds, seeds, residual=False)
-    assert not np.allclose(made[1.0, 0.0], made[3.0, 0.0])
-    assert np.abs(np.diff(made[1.0, 2.0], axis=1)).mean() < 0.8 * np.abs(np.diff(made[1.0, 0.0], axis=1)).mean()
-    vae.timing_guidance, vae.output_smoothing = 3.0, 1.75
+    for setting in ((1.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 2.0, 0.0), (1.0, 0.0, 2.75)):
+        vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = setting
+        made[setting] = generate_from_conditions(model, conds, seeds, residual=False)
+    assert not np.allclose(made[1.0, 0.0, 0.0], made[3.0, 0.0, 0.0])
+    change = {k: np.abs(np.diff(v, axis=1)).mean() for k, v in made.items()}
+    assert change[1.0, 2.0, 0.0] < 0.8 * change[1.0, 0.0, 0.0] and change[1.0, 0.0, 2.75] < 0.8 * change[1.0, 0.0, 0.0]
+    vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = 4.0, 1.75, 2.75
     gt = np.asarray(cache.split("test").motion[:2], np.float32)
     plain = reconstruct_motion(model, gt, timing=conds[3][:2])
-    model.config.vae.timing_guidance, model.config.vae.output_smoothing = 1.0, 0.0
+    vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = 1.0, 0.0, 0.0
     np.testing.assert_allclose(reconstruct_motion(model, gt, timing=conds[3][:2]), plain, atol=1e-5)
     edited = emotion_label_edit(model, conds, np.zeros(len(conds[0]), np.int64))  # an edit keeps the own stream
     assert len(edited) == 4 and edited[3] is conds[3] and edited[0] is conds[0]

@@ -23,6 +23,8 @@ def test_changed_take_gives_fresh_latents(tmp_path):
     save_model(tmp_path / "speech", "speech", SpeechDisentangler(cfg), cfg,
                speech_model_extra(cache, [1, 2], 0, ["train"]))
     before = SpeechLatentEncoder.from_run(tmp_path / "speech").encode_split(cache, "test")
+    # cached beside the windows, never beside the model (the bundled model lives inside the package)
+    assert len(list((tmp_path / "cache" / "latents").glob("*.npz"))) == 1 and not (tmp_path / "speech" / "latents").exists()
 
     # the same settings, one test take's speech replaced (as after `corpus --overwrite`)
     take = next(n for n in names if n.endswith("_2_2"))

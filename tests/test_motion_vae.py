@@ -325,6 +325,29 @@ def test_decode_pair_gives_the_decoding_with_and_without_the_stream():
         MotionVAEConfig(output_smoothing=-0.5)
 
 
+def test_output_lowpass_keeps_strokes_below_the_cutoff_and_removes_jitter_above_it():
+    import math
+
+    from emogesture.models.motion_vae import gaussian_smooth, lowpass
+
+    t = torch.arange(300, dtype=torch.float32) / 30
+    sine = lambda hz: torch.sin(2 * math.pi * hz * t)  # noqa: E731
+    x = torch.stack([sine(1.0), sine(2.0), sine(6.0), 3 + 0.5 * t], -1)[None]  # [1, 300, 4]
+    y = lowpass(x, 2.75)
+    mid = slice(60, 240)
+    gain = (y[0, mid].std(0) / x[0, mid].std(0)).tolist()
+    assert gain[0] == pytest.approx(1.0, abs=0.01) and gain[1] > 0.95 and gain[2] < 0.01
+    torch.testing.assert_close(y[..., 3], x[..., 3], atol=1e-4, rtol=0)  # a ramp passes, edges included
+    # where a Gaussian removes as much of the 6-Hz jitter, it also takes a large share of 2-Hz strokes
+    g = gaussian_smooth(x, 2.0)
+    assert (g[0, mid, 2].std() / x[0, mid, 2].std()) > 0.01 and (g[0, mid, 1].std() / x[0, mid, 1].std()) < 0.8
+    assert lowpass(torch.randn(2, 5, 3), 2.75).shape == (2, 5, 3)  # windows shorter than the kernel
+    with pytest.raises(ConfigError, match="output_lowpass_hz"):
+        MotionVAEConfig(output_lowpass_hz=15.0)
+    with pytest.raises(ConfigError, match="output_lowpass_hz"):
+        MotionVAEConfig(output_lowpass_hz=-1.0)
+
+
 def test_decoder_smoothing_ends_the_decoder_in_training_and_generation():
     from emogesture.models.motion_vae import gaussian_smooth
 
@@ -352,10 +375,11 @@ def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_
 
     for variant in ("joint", "disjoint"):
         vae = GestureModelConfig.preset("tiny", variant).vae
-        assert (vae.low_frequency_path, vae.timing_features, vae.timing_guidance) == (16, 2, 3.0)
-        assert vae.output_smoothing > 0
+        assert (vae.low_frequency_path, vae.timing_features, vae.timing_guidance) == (16, 2, 4.0)
+        assert (vae.output_smoothing, vae.output_lowpass_hz) == (0.0, 2.75)
     for variant in ("no_prior", "no_audio"):  # the ablations keep the design before issue 18
         c = GestureModelConfig.preset("tiny", variant)
         assert not c.hears_timing and c.vae.low_frequency_path == 48 and c.vae.output_smoothing == 0
+        assert c.vae.output_lowpass_hz == 0
     paper = GestureModelConfig.preset("paper")
     assert not paper.hears_timing and paper.vae.low_frequency_path == 0 and paper.vae.timing_guidance == 1.0

@@ -55,6 +55,7 @@ positions + 1e-4 KL, batch 32, 1 thread; held-out joint error as a fraction of t
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -63,6 +64,7 @@ from torch import nn
 
 from emogesture.errors import ConfigError
 from emogesture.models.skip_transformer import SkipTransformer, SkipTransformerConfig
+from emogesture.types import FPS
 
 
 @dataclass
@@ -91,6 +93,11 @@ class MotionVAEConfig:
     timing_guidance: float = 1.0
     #: Generation only: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
     output_smoothing: float = 0.0
+    #: Generation only: cutoff, in Hz at the motion's 30 fps, of a zero-phase low-pass over the decoded
+    #: features (:func:`lowpass`; 0 = none; after ``output_smoothing`` when both are set). Sharper than the
+    #: Gaussian: it removes the decoder's jitter above the cutoff and keeps the strokes below it at full
+    #: speed, where a Gaussian that removes the jitter also halves 3-Hz motion.
+    output_lowpass_hz: float = 0.0
     #: σ, in frames, of a Gaussian smoothing that ends the decoder, in training and generation alike
     #: (0 = none): a decoder trained through it cannot output frame-to-frame jitter, and learns strokes
     #: that keep their speed after it (``output_smoothing`` at generation only costs that speed).
@@ -112,6 +119,9 @@ class MotionVAEConfig:
                               f"and decoder_smoothing must be ≥ 0, got {self.timing_features}, "
                               f"{self.timing_smoothing}, {self.timing_guidance}, {self.output_smoothing}, "
                               f"{self.decoder_smoothing}")
+        if not 0 <= self.output_lowpass_hz < FPS / 2:
+            raise ConfigError(f"motion VAE: output_lowpass_hz must be 0 (off) or below {FPS / 2:g} Hz (half the "
+                              f"{FPS} fps), got {self.output_lowpass_hz}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -135,14 +145,14 @@ class MotionVAEConfig:
         ``tiny`` with ``timing=True`` (issue 18; the gesture model's default, for the variants that hear
         speech): 16 cosines only (0.75 Hz over 10 s), so the latent carries posture and slow motion
         but not the strokes, and the decoder reads the speech's timing stream (smoothed, σ 2 frames)
-        to place them; at generation the stream's part is scaled by 3 (``timing_guidance``) and the
-        output smoothed (σ 1.75 frames). The choices were made on the val texts (see
+        to place them; at generation the stream's part is scaled by 4 (``timing_guidance``) and the
+        output low-passed at 2.75 Hz (``output_lowpass_hz``). The choices were made on the val texts (see
         ``experiments/README.md``, "Gestures on the beat").
         """
         if name == "paper":
             return cls(feature_dim=feature_dim, frames=frames)
         if name == "tiny":
-            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=3.0, output_smoothing=1.75)
+            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=4.0, output_lowpass_hz=2.75)
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
                        low_frequency_path=min(16 if timing else 48, frames), **(hears if timing else {}))
         raise ConfigError(f"unknown motion VAE preset {name!r}; known: paper, tiny")
@@ -156,6 +166,26 @@ def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
     kernel = torch.exp(-0.5 * (offsets / sigma) ** 2)
     kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
     y = F.pad(x.transpose(1, 2), (r, r), mode="replicate")
+    return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
+
+
+def lowpass(x: torch.Tensor, cutoff_hz: float, fps: float = FPS) -> torch.Tensor:
+    """``x [B, T, F]`` low-passed along T at ``cutoff_hz``: zero phase, by a Hann-windowed sinc kernel
+    reaching 3 cutoff periods each side (shortened to ``T - 1`` frames for short windows), unit gain at 0 Hz.
+
+    The edges are extended by odd reflection (``2·x[0] − x[k]``), which keeps both the edge value and
+    its slope, so a ramp passes unchanged and a window does not slow down towards its ends.
+    """
+    t = x.shape[1]
+    r = min(math.ceil(3 * fps / cutoff_hz), t - 1)
+    if r < 1:
+        return x
+    n = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
+    f = cutoff_hz / fps  # cycles per frame
+    kernel = torch.sinc(2 * f * n) * (0.5 + 0.5 * torch.cos(torch.pi * n / (r + 1)))
+    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
+    y = x.transpose(1, 2)
+    y = torch.cat([2 * y[..., :1] - y[..., 1:r + 1].flip(-1), y, 2 * y[..., -1:] - y[..., -r - 1:-1].flip(-1)], -1)
     return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
 
 

@@ -24,7 +24,7 @@ from emogesture.diffusion.residual import add_residual_noise, residual_factor
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
-from emogesture.models.motion_vae import gaussian_smooth
+from emogesture.models.motion_vae import gaussian_smooth, lowpass
 from emogesture.motion import MotionFeatureSpec, guide_features
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.runtime import autocast
@@ -142,7 +142,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
     the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
     ``precision="bf16"``: the decoder runs under bf16 autocast. ``generation``: apply the decoder's
-    generation settings (``vae.timing_guidance``, ``vae.output_smoothing``); ``False`` decodes as in
+    generation settings (``vae.timing_guidance``, ``vae.output_smoothing``, ``vae.output_lowpass_hz``); ``False`` decodes as in
     training (the prior's reconstruction)."""
     model = gesture.model.eval()
     vae = gesture.config.vae
@@ -150,6 +150,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     reads = vae.timing_features > 0
     guidance = vae.timing_guidance if generation and reads else 1.0
     smoothing = vae.output_smoothing if generation else 0.0
+    cutoff = vae.output_lowpass_hz if generation else 0.0
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
     if guided:
         spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
@@ -168,6 +169,8 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
         x = x.float()
         if smoothing > 0:
             x = gaussian_smooth(x, smoothing)
+        if cutoff > 0:
+            x = lowpass(x, cutoff)
         out.append(x.cpu().numpy())
     return np.concatenate(out) * std + mean
 

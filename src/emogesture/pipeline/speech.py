@@ -122,7 +122,8 @@ class SpeechLatentEncoder:
         return enc, starts
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
-        """Latents of every window of a prepared split, cached next to the model file.
+        """Latents of every window of a prepared split, cached in the windows cache's ``latents/`` folder
+        (never next to the model: the bundled model lives inside the installed package).
 
         The cache file is keyed by what the latents depend on: the model's weights checksum, the cache's
         statistics digest and a digest of the split's filterbank windows themselves, so a changed model
@@ -132,7 +133,7 @@ class SpeechLatentEncoder:
         key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}_{array_digest(windows.fbank)}"
         if self.precision != "fp32":
             key += f"_{self.precision}"
-        path = Path(self.loaded.path).parent / "latents" / f"{key}.npz"
+        path = Path(cache.root) / "latents" / f"{key}.npz"
         if path.is_file():
             with np.load(path) as z:
                 return EncodedWindows(*(z[k] for k in EncodedWindows.stored))
