@@ -163,10 +163,7 @@ def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
     repeat the first and last frame)."""
     r = max(1, int(3 * sigma + 0.5))
     offsets = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
-    kernel = torch.exp(-0.5 * (offsets / sigma) ** 2)
-    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
-    y = F.pad(x.transpose(1, 2), (r, r), mode="replicate")
-    return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
+    return _filter_over_time(x, torch.exp(-0.5 * (offsets / sigma) ** 2), odd_edges=False)
 
 
 def lowpass(x: torch.Tensor, cutoff_hz: float, fps: float = FPS) -> torch.Tensor:
@@ -182,10 +179,21 @@ def lowpass(x: torch.Tensor, cutoff_hz: float, fps: float = FPS) -> torch.Tensor
         return x
     n = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
     f = cutoff_hz / fps  # cycles per frame
-    kernel = torch.sinc(2 * f * n) * (0.5 + 0.5 * torch.cos(torch.pi * n / (r + 1)))
-    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
+    return _filter_over_time(x, torch.sinc(2 * f * n) * (0.5 + 0.5 * torch.cos(torch.pi * n / (r + 1))),
+                             odd_edges=True)
+
+
+def _filter_over_time(x: torch.Tensor, kernel: torch.Tensor, odd_edges: bool) -> torch.Tensor:
+    """``x [B, T, F]`` convolved along T with ``kernel [2r + 1]`` (normalised to unit sum), each feature
+    alone; the edges extended by ``r`` frames, repeating the end frames or, with ``odd_edges``, by odd
+    reflection (``2·x[0] − x[k]``)."""
+    r = (len(kernel) - 1) // 2
     y = x.transpose(1, 2)
-    y = torch.cat([2 * y[..., :1] - y[..., 1:r + 1].flip(-1), y, 2 * y[..., -1:] - y[..., -r - 1:-1].flip(-1)], -1)
+    if odd_edges:
+        y = torch.cat([2 * y[..., :1] - y[..., 1:r + 1].flip(-1), y, 2 * y[..., -1:] - y[..., -r - 1:-1].flip(-1)], -1)
+    else:
+        y = F.pad(y, (r, r), mode="replicate")
+    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
     return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
 
 
