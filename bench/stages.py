@@ -1,7 +1,7 @@
 """Time per stage of generation, per 10 s of audio, against the floor measured in the same run.
 
 For one preset and one precision, a clip of SECONDS of speech (default 60) goes through
-``GesturePipeline.generate`` (default settings: 8-s hops, 4 seam candidates, one sample) with its
+``GesturePipeline.generate`` (default settings: 7-s hops, 4 seam candidates, one sample) with its
 stage timer on; the three audio encoders are timed apart by hooks on the speech model; the exports
 (npz, bvh, mp4) are timed on the generated sequence. Each row gives seconds per 10 s of audio, the
 real-time factor, the FLOPs counted for the stage (torch's FlopCounter on a weightless copy) and
@@ -29,7 +29,7 @@ import machine  # noqa: E402
 from emogesture.audio import window_starts  # noqa: E402
 from emogesture.models.gesture import gesture_flops  # noqa: E402
 from emogesture.models.speech import flops_per_window  # noqa: E402
-from emogesture.pipeline.generate import GesturePipeline, candidates_drawn  # noqa: E402
+from emogesture.pipeline.generate import HOP_SECONDS, WINDOW_SECONDS, GesturePipeline, candidates_drawn  # noqa: E402
 from emogesture.runtime import StageTimes  # noqa: E402
 
 ENCODERS = ("content_encoder", "emotion_encoder", "style_encoder")
@@ -70,7 +70,7 @@ def run(preset: str, precision: str, seconds: float, exports: bool, repeats: int
         for fmt in ("npz", "bvh", "mp4"):
             with times.stage(f"export {fmt}"):
                 export_sequence(seq, work / f"out_{fmt}", (fmt,), audio=(wave, 16000), overwrite=True)
-    windows = len(window_starts(seconds, 10.0, 8.0))
+    windows = len(window_starts(seconds, WINDOW_SECONDS, HOP_SECONDS))
     draws = windows * candidates_drawn(windows, 4)
     sflops = flops_per_window(pipe.speech.loaded.config)
     gflops = gesture_flops(pipe.loaded.config)

@@ -14,6 +14,7 @@ import numpy as np
 
 from emogesture.checkpoints import write_checksums
 from emogesture.data.synthetic.corpus import CORPUS_VERSION
+from emogesture.pipeline.generate import HOP_SECONDS
 
 REBUILD = "make model   # = bash experiments/bundled_model.sh (resumes when re-run)"
 
@@ -43,7 +44,7 @@ def seams_paragraph(checks: dict) -> str:
     whole = value("every take whole, 1 candidate: p99 seam jump / p99 inside")
     verdict = ("the seams move no more than the motion inside a window" if stretch["pass"] and whole["pass"]
                else "**the seams sometimes move more than the motion inside a window**")
-    return (f"- **Long audio.** Audio longer than 10 s is generated as 10-s windows every 8 s, cross-faded over the\n"
+    return (f"- **Long audio.** Audio longer than 10 s is generated as 10-s windows every {HOP_SECONDS:g} s, cross-faded over the\n"
             f"  overlaps: {verdict} (99th-percentile frame-to-frame joint\n"
             f"  jump at the seams over that inside windows: {stretch['value']:.2f} on a 65-s stretch of the test "
             f"texts, whose real\n  motion gives {real['value']:.2f}; {whole['value']:.2f} over every test take "

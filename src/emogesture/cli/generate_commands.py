@@ -72,7 +72,8 @@ def run_generate(args: argparse.Namespace) -> int:
     from emogesture.errors import EmogestureError
     from emogesture.export import export_paths, export_sequence, parse_formats
     from emogesture.fileio import atomic_output, check_output
-    from emogesture.pipeline.generate import EditRequest, GesturePipeline, candidates_drawn, output_stem
+    from emogesture.pipeline.generate import (HOP_SECONDS, WINDOW_SECONDS, EditRequest, GesturePipeline,
+                                              candidates_drawn, output_stem)
     from emogesture.pipeline.perception import auto_emotion, perception_of
     from emogesture.runtime import resolve_device
 
@@ -118,7 +119,7 @@ def run_generate(args: argparse.Namespace) -> int:
             check_output(path, args.overwrite)
     check_output(perception_path, args.overwrite)
 
-    with tqdm(total=len(window_starts(len(wave) / 16000, 10.0, 8.0)), desc="encoding speech", unit="window",
+    with tqdm(total=len(window_starts(len(wave) / 16000, WINDOW_SECONDS, HOP_SECONDS)), desc="encoding speech", unit="window",
               disable=not show, leave=False) as bar:
         encoded = pipe.encode(wave, progress=bar.update)
     perceived = [pipe.perceive(*encoded, source=str(args.speech))]

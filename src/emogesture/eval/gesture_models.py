@@ -44,7 +44,7 @@ from emogesture.pipeline.conditions import (
     reconstruct_motion,
     window_seeds,
 )
-from emogesture.pipeline.generate import WINDOW_SECONDS, GesturePipeline, largest_joint_jumps
+from emogesture.pipeline.generate import HOP_SECONDS, WINDOW_SECONDS, GesturePipeline, largest_joint_jumps
 from emogesture.pipeline.perception import auto_emotion, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -177,7 +177,7 @@ def ground_truth_jumps(motion: np.ndarray, cache: WindowsCache) -> np.ndarray:
         return largest_joint_jumps(SkeletonBody().forward_features(torch.from_numpy(motion), spec).numpy())
 
 
-def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str], hop_seconds: float = 8.0,
+def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str], hop_seconds: float = HOP_SECONDS,
                                 fps: int = FPS) -> dict:
     """The seam check applied to motion without seams: each take's ground truth (its consecutive windows
     of the split), cut into the generator's 10-s windows every ``hop_seconds``; jumps pooled over ``takes``.
@@ -202,7 +202,7 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
 SEAM_CANDIDATES = (4, 1)  # the generator's default (chosen on the seam statistic) and unselected windows
 
 
-def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = 8.0,
+def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = HOP_SECONDS,
                      seam_candidates: int = 4) -> tuple[np.ndarray, list[float]]:
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
     seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds, seam_candidates=seam_candidates)[0]
@@ -216,7 +216,7 @@ def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_sec
 SEAM_SEEDS = 4
 
 
-def long_audio_check(pipe: GesturePipeline, long: LongAudio, seed: int, hop_seconds: float = 8.0) -> dict:
+def long_audio_check(pipe: GesturePipeline, long: LongAudio, seed: int, hop_seconds: float = HOP_SECONDS) -> dict:
     """Generate for a long recording (:func:`long_audio`) with the default seam chooser (seed ``seed``) and
     with 1 candidate per window, no selection (seeds ``seed`` to ``seed + SEAM_SEEDS - 1``, jumps pooled):
     frame count and seam statistics of each (see :func:`seam_jumps`), keyed by candidates. Jumps near a
@@ -236,7 +236,7 @@ def long_audio_check(pipe: GesturePipeline, long: LongAudio, seed: int, hop_seco
     return out
 
 
-def long_audio_ground_truth(long: LongAudio, cache: WindowsCache, hop_seconds: float = 8.0) -> dict:
+def long_audio_ground_truth(long: LongAudio, cache: WindowsCache, hop_seconds: float = HOP_SECONDS) -> dict:
     """The same statistics on the ground truth of the long recording's frames, cut into the same windows
     (real motion, no seams), take boundaries left out alike."""
     starts = window_starts(len(long.motion) / FPS, WINDOW_SECONDS, hop_seconds).tolist()
@@ -245,7 +245,7 @@ def long_audio_ground_truth(long: LongAudio, cache: WindowsCache, hop_seconds: f
 
 
 def whole_take_seams(pipe: GesturePipeline, cache: WindowsCache, split: str, seed: int,
-                     hop_seconds: float = 8.0, seam_candidates: int = 1) -> dict:
+                     hop_seconds: float = HOP_SECONDS, seam_candidates: int = 1) -> dict:
     """Every take of a split generated whole (its own audio, one emotion and speaker), seam and inside
     jumps pooled over the takes (see :func:`seam_statistics`): seams where the speech runs on, in
     thousands of jumps, next to :func:`ground_truth_seam_reference` over the same takes."""
