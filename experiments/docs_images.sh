@@ -9,12 +9,19 @@ cd "$(dirname "$0")/.."
 EG=.venv/bin/emogesture
 OUT=outputs/docs_images
 TAKE=2_scott_0_4_4
+V2=outputs/demo/corpus_v2
 mkdir -p "$OUT"
+if [ ! -f "$V2/smplxflame_30/$TAKE.npz" ]; then  # corpus v2 is built by the code of its day: the commit before v3
+    CODE=outputs/corpus_v2_code
+    [ -d "$CODE" ] || git worktree add --detach -f "$CODE" 6af1b18~1
+    PYTHONPATH="$CODE/src" .venv/bin/python -c 'import sys; from emogesture.cli.main import main; sys.exit(main())' \
+        corpus --out "$V2" --resume --quiet
+fi
 $EG generate src/emogesture/assets/demo/talk.flac -o "$OUT" --format mp4 --overwrite --quiet
 ffmpeg -loglevel error -y -ss 12.5 -i "$OUT/talk_seed0_0.mp4" -frames:v 1 "$OUT/demo.png"
 mv "$OUT/demo.png" docs/demo.png
 $EG generate "outputs/demo/corpus/wave16k/$TAKE.wav" -o "$OUT" --format npz --overwrite --quiet
 .venv/bin/python experiments/contact_sheet.py experiments/reports/motion/contact_sheet.png --overwrite \
     "corpus v3\n(issue 17)=outputs/demo/corpus/smplxflame_30/$TAKE.npz" \
-    "corpus v2\n(before)=outputs/demo/corpus_v2/smplxflame_30/$TAKE.npz" \
+    "corpus v2\n(before)=$V2/smplxflame_30/$TAKE.npz" \
     "generated\n(bundled model,\ntrained on v3)=$OUT/${TAKE}_seed0_0.npz"

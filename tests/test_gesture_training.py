@@ -250,6 +250,14 @@ def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
     assert kept["max_seam_jump_m"] < 0.1 and kept["seam_jumps"] < stats["seam_jumps"]
 
 
+def test_windows_own_jumps_keep_the_faster_window_where_two_overlap():
+    from emogesture.eval.gesture_models import windows_own_jumps
+
+    jumps = np.array([[1.0, 1.0, 1.0, 1.0], [2.0, 0.5, 0.5, 0.5]])  # two 5-frame windows, starts 0 and 2
+    assert windows_own_jumps(jumps, [0, 2], 7).tolist() == [1.0, 1.0, 2.0, 1.0, 0.5, 0.5]
+    assert windows_own_jumps(jumps, [0, 2], 5).tolist() == [1.0, 1.0, 2.0, 1.0]  # cut to the timeline
+
+
 def test_joint_difference_loss_scores_speed_not_direction():
     import torch
 

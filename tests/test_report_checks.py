@@ -21,7 +21,8 @@ def _gesture(good: bool) -> dict:
             "no prior": dict(ROW, FGD=6.0), "disjoint": dict(ROW, FGD=7.0),
             "GT, mismatched audio": dict(ROW, FGD=2.0, BA=0.99)}
     recon = {"mean pose": {"joint_error_m": 0.1}, "ours": {"joint_error_m": 0.02 if good else 0.05}}
-    long = {"candidates_1": {**_seams(1.1 if good else 3.0, tail=0.9 if good else 1.6), "seeds": 4},
+    long = {"candidates_1": {**_seams(1.1 if good else 3.0, tail=0.9 if good else 1.6), "seeds": 4,
+                             "p99_windows_own_seam_jump_m": 0.02},
             "candidates_4": _seams(0.8), "ground_truth": _seams(0.9, tail=0.8),
             "every_take": {**_seams(1.5 if good else 4.0, tail=0.85 if good else 1.3, largest=2.0 if good else 9.7),
                            "seam_candidates": 1,

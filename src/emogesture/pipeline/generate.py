@@ -286,19 +286,14 @@ class GesturePipeline:
             return decode_latents(self.loaded, z, self.loaded.config.vae.frames, timing=timing,
                                   precision=self.precision)
 
-    def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
-                 hop_seconds: float = HOP_SECONDS, seam_candidates: int = 4, emotion_mode: str = "auto",
-                 encoded: tuple[EncodedWindows, list[float]] | None = None,
-                 progress: Callable[[int], None] | None = None, times: StageTimes | None = None
-                 ) -> list[SMPLXSequence]:
-        """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
-
-        ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
-        worst seam moves least (see the module docstring); 1 = every window independent.
-        ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
-        hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
-        ``times``: wall seconds per stage are added to it (``fbank``, ``speech encoders``, ``sampling``,
-        ``motion decoder``, ``seams and poses``).
+    def draw_windows(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0,
+                     samples: int = 1, hop_seconds: float = HOP_SECONDS, seam_candidates: int = 4,
+                     emotion_mode: str = "auto", encoded: tuple[EncodedWindows, list[float]] | None = None,
+                     progress: Callable[[int], None] | None = None, times: StageTimes | None = None
+                     ) -> tuple[np.ndarray, list[int]]:
+        """A 16 kHz waveform ``[N]`` -> every window drawn, before stitching: raw motion features
+        ``[samples, W, K, T, D]`` (``K`` candidates per window, see :func:`candidates_drawn`) and the
+        windows' start frames. Arguments as in :meth:`generate`.
 
         Every sample's every candidate of every window is drawn in one batched pass (each from its own
         generator, so the result does not depend on how many are drawn together).
@@ -307,7 +302,6 @@ class GesturePipeline:
             raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
         enc, starts_s = encoded if encoded is not None else self.encode(waveform, hop_seconds, times=times)
         conds = self.conditions(enc, edit, emotion_mode)
-        num_frames = int(round(len(waveform) / 16000 * self.fps))
         starts = [int(round(s * self.fps)) for s in starts_s]
         n = len(starts)
         k_cand = candidates_drawn(n, seam_candidates)
@@ -321,15 +315,35 @@ class GesturePipeline:
         seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                  for k, i, c in draws]
         drawn = self.generate_windows(picked, seeds, progress, weights, times)
-        drawn = drawn.reshape(samples, n, k_cand, *drawn.shape[1:])
-        out = []
+        return drawn.reshape(samples, n, k_cand, *drawn.shape[1:]), starts
+
+    def to_sequence(self, feats: np.ndarray) -> SMPLXSequence:
+        """Raw motion features ``[T, D]`` -> an SMPL-X sequence of ``T`` frames."""
+        poses, trans = features_to_poses(torch.from_numpy(np.ascontiguousarray(feats, np.float32)), self.spec)
+        trans_np = trans.numpy() if trans is not None else np.zeros((len(feats), 3), np.float32)
+        return SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps)
+
+    def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
+                 hop_seconds: float = HOP_SECONDS, seam_candidates: int = 4, emotion_mode: str = "auto",
+                 encoded: tuple[EncodedWindows, list[float]] | None = None,
+                 progress: Callable[[int], None] | None = None, times: StageTimes | None = None
+                 ) -> list[SMPLXSequence]:
+        """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
+
+        ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
+        worst seam moves least (see the module docstring); 1 = every window independent.
+        ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
+        hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
+        ``times``: wall seconds per stage are added to it (``fbank``, ``speech encoders``, ``sampling``,
+        ``motion decoder``, ``seams and poses``). The windows are drawn by :meth:`draw_windows`.
+        """
+        drawn, starts = self.draw_windows(waveform, edit=edit, seed=seed, samples=samples, hop_seconds=hop_seconds,
+                                          seam_candidates=seam_candidates, emotion_mode=emotion_mode,
+                                          encoded=encoded, progress=progress, times=times)
+        num_frames = int(round(len(waveform) / 16000 * self.fps))
         with maybe_stage(times, "seams and poses"):
-            for candidates in drawn:
-                feats = stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts, num_frames)
-                poses, trans = features_to_poses(torch.from_numpy(feats), self.spec)
-                trans_np = trans.numpy() if trans is not None else np.zeros((num_frames, 3), np.float32)
-                out.append(SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps))
-        return out
+            return [self.to_sequence(stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts,
+                                            num_frames)) for candidates in drawn]
 
     def encode_file_latents(self, path: str | PathLike[str]) -> EncodedWindows:
         """Latents of another audio file (for ``--emotion-from`` / ``--style-from``)."""
