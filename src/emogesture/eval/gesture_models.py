@@ -48,6 +48,7 @@ from emogesture.pipeline.generate import (HOP_SECONDS, WINDOW_SECONDS, GesturePi
                                           stitch)
 from emogesture.pipeline.perception import auto_emotion, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
+from emogesture.types import SMPLXSequence
 
 FPS = 30
 
@@ -203,13 +204,17 @@ def ground_truth_seam_reference(cache: WindowsCache, split: str, takes: list[str
 SEAM_CANDIDATES = (4, 1)  # the generator's default (chosen on the seam statistic) and unselected windows
 
 
+def sequence_joints(pipe: GesturePipeline, seq: SMPLXSequence) -> np.ndarray:
+    """A generated sequence -> the joint positions ``[T, 55, 3]`` of the pipeline's skeleton."""
+    with torch.no_grad():
+        return pipe.body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+
+
 def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = HOP_SECONDS,
                      seam_candidates: int = 4) -> tuple[np.ndarray, list[float]]:
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
     seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds, seam_candidates=seam_candidates)[0]
-    with torch.no_grad():
-        joints = pipe.body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
-    return joints, window_starts(len(wave) / 16000, WINDOW_SECONDS, hop_seconds).tolist()
+    return sequence_joints(pipe, seq), window_starts(len(wave) / 16000, WINDOW_SECONDS, hop_seconds).tolist()
 
 
 #: Sampling seeds pooled for the long-audio seams of unselected windows: one draw's largest jumps are a
@@ -228,22 +233,19 @@ def long_audio_check(pipe: GesturePipeline, long: LongAudio, seed: int, hop_seco
     chosen, unselected = SEAM_CANDIDATES
     joints, starts = generated_joints(pipe, long.wave, seed, hop_seconds, chosen)
     out[f"candidates_{chosen}"] = {"frames": len(joints), "seeds": 1, **seam_jumps(joints, starts, long.boundaries_s)}
-    parts, own = [], []
+    parts, own_parts = [], []
     num_frames = out["expected_frames"]
     for s in range(seed, seed + SEAM_SEEDS):
         drawn, starts = pipe.draw_windows(long.wave, seed=s, hop_seconds=hop_seconds, seam_candidates=unselected)
         windows = drawn[0, :, 0]
-        seq = pipe.to_sequence(stitch(windows, starts, num_frames))
-        with torch.no_grad():
-            joints = pipe.body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+        joints = sequence_joints(pipe, pipe.to_sequence(stitch(windows, starts, num_frames)))
         starts_s = [st / FPS for st in starts]
         parts.append(split_jumps(largest_joint_jumps(joints), starts_s, long.boundaries_s))
-        own.append(split_jumps(windows_own_jumps(pipe.joint_jumps(windows), starts, num_frames),
-                               starts_s, long.boundaries_s)[0])
-    own = np.concatenate(own)
+        own_parts.append(split_jumps(windows_own_jumps(pipe.joint_jumps(windows), starts, num_frames),
+                                     starts_s, long.boundaries_s)[0])
     out[f"candidates_{unselected}"] = {"frames": len(joints), "seeds": SEAM_SEEDS, "windows": len(starts),
                                        **pooled_seam_statistics(parts),
-                                       "p99_windows_own_seam_jump_m": float(np.percentile(own, 99))}
+                                       "p99_windows_own_seam_jump_m": float(np.percentile(np.concatenate(own_parts), 99))}
     return out
 
 
