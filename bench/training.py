@@ -78,10 +78,14 @@ def module_and_items(model: str, preset: str, batch: int | None = None):
     module = GestureModule(to_dict(cfg), [0.0] * d, [0.3] * d, features)
     conds = cfg.model.denoiser.num_conditions
 
+    frames = cfg.model.vae.frames
+
     def item(g):
-        return {"motion": torch.randn(cfg.model.vae.frames, d, generator=g) * 0.3,
-                "emotion": torch.randint(0, 8, (), generator=g),
-                "conditions": [torch.randn(cfg.model.denoiser.cond_dim, generator=g) for _ in range(conds)]}
+        latents = [torch.randn(cfg.model.denoiser.cond_dim, generator=g) for _ in range(conds)]
+        # a model that hears the speech's timing (the tiny preset since issue 18) reads its stream last
+        stream = [torch.rand(frames, cfg.model.timing_features, generator=g)] if cfg.model.hears_timing else []
+        return {"motion": torch.randn(frames, d, generator=g) * 0.3,
+                "emotion": torch.randint(0, 8, (), generator=g), "conditions": latents + stream}
     return module, item, cfg.batch_size, 1
 
 

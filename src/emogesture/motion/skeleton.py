@@ -24,6 +24,8 @@ JOINT_NAMES: tuple[str, ...] = (
     *(f"left_{n}" for n in _HAND),
     *(f"right_{n}" for n in _HAND),
 )  # fmt: skip
+#: The 30 finger joints (three per finger, five fingers per hand), by index into :data:`JOINT_NAMES`.
+FINGER_JOINTS: tuple[int, ...] = tuple(i for i, n in enumerate(JOINT_NAMES) if n.split("_", 1)[-1] in _HAND)
 
 
 def _hand_parents(wrist: int, first: int) -> list[int]:

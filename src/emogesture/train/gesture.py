@@ -33,6 +33,7 @@ from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_sched
 from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
+from emogesture.motion.skeleton import FINGER_JOINTS
 from emogesture.pipeline.conditions import calibrate_residual, model_conditions, window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
@@ -59,6 +60,11 @@ class GestureLossWeights:
     #: shaking back and forth costs acceleration the motion does not have.
     vaccel: float = 0.0
     align_accel: float = 0.0
+    #: Weight of the finger joints' features inside L_rec and L_align (not in the paper; 1 = every
+    #: feature alike). The corpora curl a hand's 15 finger joints together, so at 1 one curl per hand
+    #: fills 120 of the 282 numbers and the prior spends its capacity there; the body's joints, the
+    #: wrists' own rotation among them, come out smoothed.
+    finger_features: float = 1.0
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
 
@@ -89,6 +95,9 @@ class GestureTrainConfig:
     num_workers: int = 0
 
     def __post_init__(self) -> None:
+        negative = [k for k, v in vars(self.losses).items() if v < 0]
+        if negative:
+            raise ConfigError(f"gesture training: loss weights must be ≥ 0, got {', '.join(negative)} below 0")
         if self.ld_repeats < 1 or self.batch_size < 1 or self.align_ddim_steps < 1 or self.align_every < 0:
             raise ConfigError("gesture training: ld_repeats, batch_size and align_ddim_steps must be ≥ 1, "
                               "align_every ≥ 0")
@@ -163,6 +172,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         self.spec = from_dict(MotionFeatureSpec, features)
         self.register_buffer("mean", torch.tensor(motion_mean, dtype=torch.float32))
         self.register_buffer("std", torch.tensor(motion_std, dtype=torch.float32))
+        weight = torch.ones(self.spec.dim)
+        for k, j in enumerate(self.spec.joints):
+            if j in FINGER_JOINTS:
+                weight[6 * k: 6 * k + 6] = self.cfg.losses.finger_features
+        self.register_buffer("feature_weight", weight, persistent=False)
         self.body = SkeletonBody()
         for p in self.body.parameters():
             p.requires_grad_(False)
@@ -173,6 +187,11 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
     def joints(self, normalised: torch.Tensor) -> torch.Tensor:
         """Normalised features ``[B, T, D]`` -> joint positions ``[B, T, 55, 3]`` (differentiable)."""
         return self.body.forward_features(normalised * self.std + self.mean, self.spec)
+
+    def feature_loss(self, motion: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """Smooth L1 between normalised features ``[B, T, D]``, the finger joints' weighted by
+        ``losses.finger_features`` (at 1, the plain mean)."""
+        return (F.smooth_l1_loss(motion, target, reduction="none") * self.feature_weight).mean()
 
     def joint_loss(self, joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """Smooth L1 between joint positions ``[B, T, 55, 3]`` in units of ``1 / joint_scale`` metres."""
@@ -221,7 +240,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         conds = conds[: cfg.model.denoiser.num_inputs]
         if phase_prior:
             rec, z, mu, logvar = prior(m, generator=g, timing=stream)
-            losses["rec"] = F.smooth_l1_loss(rec, m)
+            losses["rec"] = self.feature_loss(rec, m)
             joints_rec = self.joints(rec)
             losses["vrec"] = self.joint_loss(joints_rec, joints_gt())
             self.motion_terms(losses, "v", joints_rec, joints_gt())
@@ -242,7 +261,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                 z_tilde = ddim_sample(self.model.denoiser, self.ddim, conds, g,
                                       num_inference_steps=cfg.align_ddim_steps, eta=cfg.model.diffusion.eta)
                 m_tilde = prior.decode(z_tilde.detach(), frames=m.shape[1], timing=stream)
-                losses["align"] = F.smooth_l1_loss(m_tilde, m)
+                losses["align"] = self.feature_loss(m_tilde, m)
                 joints_tilde = self.joints(m_tilde)
                 losses["valign"] = self.joint_loss(joints_tilde, joints_gt())
                 self.motion_terms(losses, "align_", joints_tilde, joints_gt())

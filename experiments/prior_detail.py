@@ -1,0 +1,80 @@
+"""What a gesture model's motion prior keeps of each joint's rotation (issue 17: the slow wrists).
+
+For the first WINDOWS windows of a split: the angular speed of each joint's local rotation (rad per
+frame, `eval.motion_stats.joint_angular_speed`) of the ground truth, of the ground truth low-passed
+as the model's output filter does, of the prior's reconstruction (encoder mean, decoder as trained),
+and of the same latents decoded as at generation (timing guidance, output filter); and the
+reconstruction's mean upper-body joint error. No sampling: the latents are the motion's own.
+
+Usage: python experiments/prior_detail.py CACHE MODEL [MODEL ...] [--split val] [--windows 200] > REPORT.md
+Session 20: experiments/reports/prior_detail/val.md (the bundle, and the run with losses.finger_features=0.1).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import torch
+
+from emogesture.audio.timing import timing_stream
+from emogesture.data.cache import open_cache
+from emogesture.eval.motion_stats import joint_angular_speed
+from emogesture.models.motion_vae import lowpass
+from emogesture.motion import features_to_poses
+from emogesture.motion.skeleton import JOINT_NAMES
+from emogesture.pipeline.conditions import decode_latents, encode_motion
+from emogesture.pipeline.generate import GesturePipeline
+
+JOINTS = ("spine3", "neck", "head", "left_collar", "right_shoulder", "right_elbow", "left_wrist", "right_wrist")
+UPPER = ("spine3", "neck", "head", "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist",
+         "right_wrist")
+
+
+def speeds(pipe: GesturePipeline, feats: np.ndarray) -> list[float]:
+    poses, _ = features_to_poses(torch.from_numpy(np.array(feats, np.float32)), pipe.spec)
+    s = np.stack([joint_angular_speed(p.numpy()) for p in poses]).mean((0, 1))
+    return [float(s[JOINT_NAMES.index(j)]) for j in JOINTS]
+
+
+def joints(pipe: GesturePipeline, feats: np.ndarray) -> np.ndarray:
+    poses, _ = features_to_poses(torch.from_numpy(np.array(feats, np.float32)), pipe.spec)
+    with torch.no_grad():
+        return torch.stack([pipe.body(p, torch.zeros(len(p), 3)) for p in poses]).numpy()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("cache")
+    ap.add_argument("models", nargs="+")
+    ap.add_argument("--split", default="val")
+    ap.add_argument("--windows", type=int, default=200)
+    args = ap.parse_args()
+    windows = open_cache(args.cache).split(args.split)
+    n = min(args.windows, len(windows.motion))
+    motion = np.asarray(windows.motion[:n], np.float32)
+    stream = timing_stream(windows.fbank[:n], frames=motion.shape[1])
+    print(f"{args.split}, {n} windows; rad/frame")
+    print("| motion | " + " | ".join(JOINTS) + " | upper-body joint error |")
+    print("|---" * (len(JOINTS) + 2) + "|")
+    upper = [JOINT_NAMES.index(j) for j in UPPER]
+
+    def row(name: str, values: list[float], error: str = "") -> None:
+        print(f"| {name} | " + " | ".join(f"{v:.4f}" for v in values) + f" | {error} |")
+
+    for i, path in enumerate(args.models):
+        pipe = GesturePipeline.from_run(path)
+        if i == 0:
+            row("ground truth", speeds(pipe, motion))
+            cutoff = pipe.loaded.config.vae.output_lowpass_hz
+            if cutoff:
+                row(f"ground truth, low-passed at {cutoff:g} Hz", speeds(pipe, lowpass(torch.tensor(motion), cutoff).numpy()))
+        z = encode_motion(pipe.loaded, motion)
+        rec = decode_latents(pipe.loaded, z, motion.shape[1], timing=stream, generation=False)
+        err = np.linalg.norm(joints(pipe, rec)[..., upper, :] - joints(pipe, motion)[..., upper, :], axis=-1).mean()
+        row(f"{path}: reconstruction", speeds(pipe, rec), f"{err * 1000:.1f} mm")
+        row(f"{path}: decoded as at generation", speeds(pipe, decode_latents(pipe.loaded, z, motion.shape[1], timing=stream)))
+
+
+if __name__ == "__main__":
+    main()
