@@ -61,9 +61,9 @@ class GestureLossWeights:
     vaccel: float = 0.0
     align_accel: float = 0.0
     #: Weight of the finger joints' features inside L_rec and L_align (not in the paper; 1 = every
-    #: feature alike). The corpora curl a hand's 15 finger joints together, so at 1 one curl per hand
-    #: fills 120 of the 282 numbers and the prior spends its capacity there; the body's joints, the
-    #: wrists' own rotation among them, come out smoothed.
+    #: feature alike, as in both presets). The corpora curl a hand's 15 finger joints together, so one
+    #: curl per hand fills 120 of the 282 numbers; at 0.1 the tiny prior reconstructed the body no
+    #: better (experiments/README.md, "Where the wrists' own rotation is lost").
     finger_features: float = 1.0
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
