@@ -38,9 +38,8 @@ def speeds(pipe: GesturePipeline, feats: np.ndarray) -> list[float]:
 
 
 def joints(pipe: GesturePipeline, feats: np.ndarray) -> np.ndarray:
-    poses, _ = features_to_poses(torch.from_numpy(np.array(feats, np.float32)), pipe.spec)
     with torch.no_grad():
-        return torch.stack([pipe.body(p, torch.zeros(len(p), 3)) for p in poses]).numpy()
+        return pipe.body.forward_features(torch.from_numpy(np.array(feats, np.float32)), pipe.spec).numpy()
 
 
 def main() -> None:
