@@ -8,6 +8,9 @@ process — loading included — is what ``emogesture generate`` does with a tra
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +25,14 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.prepare import PrepareConfig
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+
+
+def scratch_folder() -> Path:
+    """A new temporary folder for one benchmark's speech, models and outputs, removed when the process
+    exits (a benchmark writes tens of MB there)."""
+    folder = Path(tempfile.mkdtemp(prefix="emogesture-bench-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    return folder
 
 
 def speech_file(folder: Path, seconds: float) -> Path:

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -49,7 +48,7 @@ def encoder_hooks(model: torch.nn.Module, times: StageTimes) -> list:
 def run(preset: str, precision: str, seconds: float, exports: bool, repeats: int = 3, device: str = "cpu",
         floor: dict | None = None) -> dict:
     floor = floor or machine.floors(device)
-    work = Path(tempfile.mkdtemp(prefix="emogesture-bench-"))
+    work = fixtures.scratch_folder()
     pipe = GesturePipeline.from_run(fixtures.gesture_run(work, preset), device=device, precision=precision)
     path = fixtures.speech_file(work, seconds)
     best: StageTimes | None = None
@@ -113,7 +112,7 @@ def drift(preset: str, seconds: float = 20.0, device: str = "cpu") -> dict:
 
     from emogesture.motion import SkeletonBody
 
-    work = Path(tempfile.mkdtemp(prefix="emogesture-bench-"))
+    work = fixtures.scratch_folder()
     model = fixtures.gesture_run(work, preset)
     out = {}
     for precision in ("fp32", "bf16"):

@@ -4,10 +4,14 @@ For the first WINDOWS windows of a split: the angular speed of each joint's loca
 frame, `eval.motion_stats.joint_angular_speed`) of the ground truth, of the ground truth low-passed
 as the model's output filter does, of the prior's reconstruction (encoder mean, decoder as trained),
 and of the same latents decoded as at generation (timing guidance, output filter); and the
-reconstruction's mean upper-body joint error. No sampling: the latents are the motion's own.
+reconstruction's mean upper-body joint error and how well it follows the motion's own feature
+columns (Pearson correlation over all frames, per 6D column; the lowest and highest of a joint
+group's moving columns). No sampling: the latents are the motion's own.
 
-Usage: python experiments/prior_detail.py CACHE MODEL [MODEL ...] [--split val] [--windows 200] > REPORT.md
+Usage: python experiments/prior_detail.py CACHE [NAME=]MODEL [...] [--split val] [--windows 200] > REPORT.md
+(NAME labels the model's rows; without it, the path does.)
 Session 20: experiments/reports/prior_detail/val.md (the bundle, and the run with losses.finger_features=0.1).
+Session 21: experiments/reports/prior_detail/prior_only_400_val.md (priors trained alone for 400 steps).
 """
 
 from __future__ import annotations
@@ -37,6 +41,14 @@ def speeds(pipe: GesturePipeline, feats: np.ndarray) -> list[float]:
     return [float(s[JOINT_NAMES.index(j)]) for j in JOINTS]
 
 
+def column_correlation(pipe: GesturePipeline, rec: np.ndarray, motion: np.ndarray, names: tuple[str, ...]) -> str:
+    """The lowest and highest correlation of ``rec`` with ``motion`` over the named joints' 6D columns
+    that move (a column constant in the motion has no correlation)."""
+    cols = [6 * k + i for k, j in enumerate(pipe.spec.joints) if JOINT_NAMES[j] in names for i in range(6)]
+    r = [np.corrcoef(rec[..., c].ravel(), motion[..., c].ravel())[0, 1] for c in cols if motion[..., c].std() > 0]
+    return f"{min(r):.2f}–{max(r):.2f}"
+
+
 def joints(pipe: GesturePipeline, feats: np.ndarray) -> np.ndarray:
     with torch.no_grad():
         return pipe.body.forward_features(torch.from_numpy(np.array(feats, np.float32)), pipe.spec).numpy()
@@ -45,7 +57,7 @@ def joints(pipe: GesturePipeline, feats: np.ndarray) -> np.ndarray:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("cache")
-    ap.add_argument("models", nargs="+")
+    ap.add_argument("models", nargs="+", metavar="[NAME=]MODEL")
     ap.add_argument("--split", default="val")
     ap.add_argument("--windows", type=int, default=200)
     args = ap.parse_args()
@@ -54,14 +66,17 @@ def main() -> None:
     motion = np.asarray(windows.motion[:n], np.float32)
     stream = timing_stream(windows.fbank[:n], frames=motion.shape[1])
     print(f"{args.split}, {n} windows; rad/frame")
-    print("| motion | " + " | ".join(JOINTS) + " | upper-body joint error |")
-    print("|---" * (len(JOINTS) + 2) + "|")
+    print("| motion | " + " | ".join(JOINTS) + " | upper-body joint error | correlation: wrists' columns | elbows' |")
+    print("|---" * (len(JOINTS) + 4) + "|")
     upper = [JOINT_NAMES.index(j) for j in UPPER]
 
-    def row(name: str, values: list[float], error: str = "") -> None:
-        print(f"| {name} | " + " | ".join(f"{v:.4f}" for v in values) + f" | {error} |")
+    def row(name: str, values: list[float], *extra: str) -> None:
+        cells = [*extra, "", "", ""][:3]
+        print(f"| {name} | " + " | ".join(f"{v:.4f}" for v in values) + " | " + " | ".join(cells) + " |")
 
-    for i, path in enumerate(args.models):
+    for i, spec in enumerate(args.models):
+        name, _, path = spec.rpartition("=")
+        name = name or path
         pipe = GesturePipeline.from_run(path)
         if i == 0:
             row("ground truth", speeds(pipe, motion))
@@ -71,8 +86,10 @@ def main() -> None:
         z = encode_motion(pipe.loaded, motion)
         rec = decode_latents(pipe.loaded, z, motion.shape[1], timing=stream, generation=False)
         err = np.linalg.norm(joints(pipe, rec)[..., upper, :] - joints(pipe, motion)[..., upper, :], axis=-1).mean()
-        row(f"{path}: reconstruction", speeds(pipe, rec), f"{err * 1000:.1f} mm")
-        row(f"{path}: decoded as at generation", speeds(pipe, decode_latents(pipe.loaded, z, motion.shape[1], timing=stream)))
+        row(f"{name}: reconstruction", speeds(pipe, rec), f"{err * 1000:.1f} mm",
+            column_correlation(pipe, rec, motion, ("left_wrist", "right_wrist")),
+            column_correlation(pipe, rec, motion, ("left_elbow", "right_elbow")))
+        row(f"{name}: decoded as at generation", speeds(pipe, decode_latents(pipe.loaded, z, motion.shape[1], timing=stream)))
 
 
 if __name__ == "__main__":

@@ -19,3 +19,22 @@ def test_training_throughput_runs_a_tiny_step(model, monkeypatch):
 
     row = training.throughput(model, "tiny", "fp32", steps=1, batch=2)
     assert row["windows_per_second"] > 0 and row["windows_per_step"] == 2 * (4 if model == "speech" else 1)
+
+
+def test_whole_process_benchmark_runs_and_leaves_no_scratch_folder(tmp_path):
+    """bench/whole.py on two short clips, one run each after its untimed one, in a child process so that
+    its scratch folder's removal at exit is seen (the benchmarks used to leave ~55 MB in /tmp)."""
+    import json
+    import os
+    import subprocess
+
+    env = {**os.environ, "TMPDIR": str(tmp_path), "OMP_NUM_THREADS": "1"}
+    code = ("import sys, json; sys.path.insert(0, sys.argv[1]); import whole; "
+            "r = whole.run('tiny', [1.0, 2.0], repeats=1); print(json.dumps(r)); print(whole.table(r))")
+    out = subprocess.run([sys.executable, "-c", code, str(BENCH)], env=env, capture_output=True, text=True,
+                         check=True).stdout
+    result = json.loads(next(line for line in out.splitlines() if line.startswith("{")))
+    assert [r["seconds"] for r in result["runs"]] == [1.0, 2.0]
+    assert all(r["wall_s"] > 0 and r["peak_rss_gib"] > 0 for r in result["runs"])
+    assert result["repeats"] == 1 and result["four_samples_s"] > 0 and "best of 1 after an untimed run" in out
+    assert not list(tmp_path.glob("emogesture-bench-*"))

@@ -339,35 +339,41 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     assert len(seq.poses) == int(round(len(wave) / 16000 * 30))
 
 
-def test_finger_features_weigh_only_the_finger_joints_in_the_feature_loss():
+@pytest.mark.parametrize("group", ["finger", "wrist"])
+def test_joint_group_weights_weigh_only_their_joints_in_the_feature_loss(group):
     import torch
 
     from emogesture.config import to_dict
     from emogesture.errors import ConfigError
     from emogesture.motion import MotionFeatureSpec
-    from emogesture.motion.skeleton import FINGER_JOINTS, JOINT_NAMES
+    from emogesture.motion.skeleton import FINGER_JOINTS, JOINT_NAMES, WRIST_JOINTS
     from emogesture.train.gesture import GestureModule, GestureTrainConfig
 
     assert len(FINGER_JOINTS) == 30 and {JOINT_NAMES[j].split("_")[0] for j in FINGER_JOINTS} == {"left", "right"}
+    assert [JOINT_NAMES[j] for j in WRIST_JOINTS] == ["left_wrist", "right_wrist"]
     spec = MotionFeatureSpec()
     cols = {j: slice(6 * k, 6 * k + 6) for k, j in enumerate(spec.joints)}
+    option = f"{group}_features"
+    weighted, other = (FINGER_JOINTS, WRIST_JOINTS) if group == "finger" else (WRIST_JOINTS, FINGER_JOINTS)
 
     def module(weight: float) -> GestureModule:
         cfg = GestureTrainConfig.preset("tiny")
-        cfg.losses.finger_features = weight
+        setattr(cfg.losses, option, weight)
         return GestureModule(to_dict(cfg), [0.0] * spec.dim, [1.0] * spec.dim, to_dict(spec))
 
-    plain, light = module(1.0), module(0.1)
+    plain, changed = module(1.0), module(0.1 if group == "finger" else 8.0)
+    scale = getattr(changed.cfg.losses, option)
     g = torch.Generator().manual_seed(0)
     target = torch.randn(2, 8, spec.dim, generator=g)
-    for joint, scale in ((FINGER_JOINTS[0], 0.1), (FINGER_JOINTS[-1], 0.1), (JOINT_NAMES.index("right_wrist"), 1.0)):
+    cases = [(weighted[0], scale), (weighted[-1], scale), (other[0], 1.0), (JOINT_NAMES.index("right_elbow"), 1.0)]
+    for joint, factor in cases:
         moved = target.clone()
         moved[..., cols[joint]] += 0.5  # an error on one joint's features only
         assert plain.feature_loss(moved, target).item() > 0
-        assert light.feature_loss(moved, target).item() == pytest.approx(scale * plain.feature_loss(moved, target).item())
+        assert changed.feature_loss(moved, target).item() == pytest.approx(factor * plain.feature_loss(moved, target).item())
     both = target + 0.5  # at 1 it is the plain smooth L1 mean
     assert plain.feature_loss(both, target).item() == pytest.approx(torch.nn.functional.smooth_l1_loss(both, target).item())
     cfg = GestureTrainConfig.preset("tiny")
-    cfg.losses.finger_features = -1.0
-    with pytest.raises(ConfigError, match="finger_features"):
+    setattr(cfg.losses, option, -1.0)
+    with pytest.raises(ConfigError, match=option):
         cfg.__post_init__()

@@ -253,6 +253,16 @@ def test_latent_tokens_split_z_into_distribution_and_memory_tokens():
         MotionVAEConfig(latent_tokens=3)
 
 
+def _assert_mu_reads(vae: MotionVAE, path: torch.nn.Linear) -> None:
+    """The encoder's μ of a random 30-frame window changes when the path's Linear into μ is zeroed."""
+    x = torch.randn(1, 30, 282, generator=_gen(1))
+    mu = vae.encode(x, sample=False)[1]
+    with torch.no_grad():
+        path.weight.zero_()
+        path.bias.zero_()
+    assert not torch.allclose(vae.encode(x, sample=False)[1], mu)
+
+
 def test_low_frequency_path_adds_dct_analysis_and_synthesis():
     cfg = MotionVAEConfig.preset("tiny", frames=30)
     cfg.low_frequency_path = 4
@@ -270,15 +280,34 @@ def test_low_frequency_path_adds_dct_analysis_and_synthesis():
     expected = torch.einsum("nf,bfe->bne", basis, coefficients)
     assert torch.allclose(vae.decode(z), expected, atol=1e-5)
     assert torch.allclose(vae.decode(z, frames=17), expected[:, :17], atol=1e-5)
-    # the encoder's μ moves with the window's slow content through the path
-    x = torch.randn(1, 30, 282, generator=_gen(1))
-    mu = vae.encode(x, sample=False)[1]
-    with torch.no_grad():
-        vae.low_frequency_mu.weight.zero_()
-        vae.low_frequency_mu.bias.zero_()
-    assert not torch.allclose(vae.encode(x, sample=False)[1], mu)
+    _assert_mu_reads(vae, vae.low_frequency_mu)  # the encoder's μ moves with the window's slow content
     with pytest.raises(ConfigError, match="low_frequency_path"):
         MotionVAEConfig(frames=30, low_frequency_path=31)
+
+
+def test_detail_path_writes_and_reads_only_its_columns():
+    cfg = MotionVAEConfig.preset("tiny", frames=30)
+    cfg.detail_path, cfg.detail_columns = 6, (5, 7, 8)
+    vae = MotionVAE(cfg).eval()
+    z = torch.randn(2, 256, generator=_gen(0))
+    plain, plain17 = vae.decode(z), vae.decode(z, frames=17)
+    vae_off = MotionVAE(MotionVAEConfig.preset("tiny", frames=30))
+    vae_off.load_state_dict(vae.state_dict(), strict=False)
+    assert torch.equal(plain, vae_off.eval().decode(z))  # its output Linear starts at zero: a no-op
+    with torch.no_grad():
+        vae.detail_out.weight.normal_(generator=_gen(1))
+    moved = vae.decode(z) - plain
+    coefficients = vae.detail_out(z).reshape(2, 6, 3)
+    expected = torch.einsum("tf,bfc->btc", vae.detail_basis, coefficients)
+    assert torch.allclose(moved[..., [5, 7, 8]], expected, atol=1e-5)
+    others = [c for c in range(282) if c not in (5, 7, 8)]
+    assert moved[..., others].abs().max() == 0
+    assert torch.allclose((vae.decode(z, frames=17) - plain17)[..., [5, 7, 8]], expected[:, :17], atol=1e-5)
+    _assert_mu_reads(vae, vae.detail_mu)  # the encoder's μ moves with the detail columns' content
+    for bad in (dict(detail_path=6, detail_columns=()), dict(detail_path=6, detail_columns=(3, 3)),
+                dict(detail_path=6, detail_columns=(282,)), dict(detail_path=31, detail_columns=(1,))):
+        with pytest.raises(ConfigError, match="detail"):
+            MotionVAEConfig(frames=30, **bad)
 
 
 def test_timing_stream_smoothing_removes_frame_jitter_before_the_decoder():

@@ -33,6 +33,10 @@ Two further options (not in MLD; off in the ``paper`` preset) make a small prior
   time (coefficient 0 is the time mean); the decoder adds ``Σ_f cos_f(t) · Linear(z)_f`` to every frame.
   The transformers then only model what is left: the gesture strokes. The path's output Linear starts
   at zero (random cosines would only add noise).
+* ``detail_path = F'`` with ``detail_columns``: the same kind of path for a few feature columns only,
+  reading their own features (not the frame embeddings) and writing only them, so that those columns
+  get more cosines than the rest (issue 17: the wrists' turns, which the timing stream cannot place,
+  while the arms' strokes stay with the stream). Output Linear at zero, as above.
 
 ``timing_features = F > 0`` (issue 18; not in MLD, off in both presets): the decoder also reads the
 speech's timing stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, T, F]``): every query
@@ -82,6 +86,12 @@ class MotionVAEConfig:
     frames_per_token: int = 1
     latent_tokens: int = 1
     low_frequency_path: int = 0
+    #: A second linear cosine path, for some feature columns only (not in MLD; 0 = off): the encoder adds
+    #: ``Linear(DCT_F(the columns' own features))`` to μ, the decoder adds ``Σ_f cos_f(t) · Linear(z)_f``
+    #: to those columns, with F = ``detail_path`` cosines. Meant for motion the timing stream cannot
+    #: place (a wrist turning in each stroke's own direction) while the other columns keep a short path.
+    detail_path: int = 0
+    detail_columns: tuple[int, ...] = ()
     timing_features: int = 0
     #: σ, in frames, of a Gaussian smoothing of the timing stream before the decoder reads it (0 = none):
     #: the fbank's frame-to-frame onset strength is jittery, and read raw it comes out as jitter.
@@ -110,6 +120,14 @@ class MotionVAEConfig:
         if not 0 <= self.low_frequency_path <= self.frames // self.frames_per_token:
             raise ConfigError(f"motion VAE: low_frequency_path must be in 0..{self.frames // self.frames_per_token}, "
                               f"got {self.low_frequency_path}")
+        if self.detail_path:
+            cols = self.detail_columns
+            if not cols or len(set(cols)) != len(cols) or min(cols) < 0 or max(cols) >= self.feature_dim:
+                raise ConfigError(f"motion VAE: detail_columns must be distinct feature columns in "
+                                  f"0..{self.feature_dim - 1}, got {list(cols)}")
+            if not 0 < self.detail_path <= self.frames or self.frames_per_token != 1:
+                raise ConfigError(f"motion VAE: detail_path must be in 0..{self.frames}, with frames_per_token 1; "
+                                  f"got {self.detail_path} with {self.frames_per_token}")
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
@@ -239,6 +257,17 @@ class MotionVAE(nn.Module):
             nn.init.zeros_(self.low_frequency_out.bias)
         else:
             self.dct_basis = self.low_frequency_mu = self.low_frequency_out = None
+        if c.detail_path:  # the detail path (frames_per_token is 1 here)
+            j = torch.arange(c.frames, dtype=torch.float32)[:, None] + 0.5
+            self.register_buffer("detail_basis", torch.cos(torch.pi * j * torch.arange(c.detail_path) / c.frames),
+                                 persistent=False)
+            self.register_buffer("detail_index", torch.tensor(c.detail_columns, dtype=torch.long), persistent=False)
+            self.detail_mu = nn.Linear(c.detail_path * len(c.detail_columns), c.latent_dim)
+            self.detail_out = nn.Linear(c.latent_dim, c.detail_path * len(c.detail_columns))
+            nn.init.zeros_(self.detail_out.weight)
+            nn.init.zeros_(self.detail_out.bias)
+        else:
+            self.detail_basis = self.detail_index = self.detail_mu = self.detail_out = None
         if c.timing_features:  # the speech's timing stream added to the queries (issue 18)
             self.timing_to_query = nn.Linear(k * c.timing_features, d)
             nn.init.zeros_(self.timing_to_query.weight)
@@ -278,6 +307,10 @@ class MotionVAE(nn.Module):
         if self.low_frequency_mu is not None:  # DCT-II coefficients of the frame embeddings over time
             coefficients = torch.einsum("nf,bnd->bfd", self.dct_basis[:n], frames) / n
             mu = mu + self.low_frequency_mu(coefficients.reshape(b, -1))
+        if self.detail_mu is not None:  # DCT-II coefficients of the detail columns over time
+            detail = motion[:, :, self.detail_index]
+            coefficients = torch.einsum("tf,btc->bfc", self.detail_basis[:t], detail[:, :t]) / t
+            mu = mu + self.detail_mu(coefficients.reshape(b, -1))
         if not sample:
             return mu, mu, logvar
         eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
@@ -320,6 +353,10 @@ class MotionVAE(nn.Module):
             coefficients = self.low_frequency_out(z).reshape(z.shape[0], c.low_frequency_path, -1)
             out = out + torch.einsum("nf,bfe->bne", self.dct_basis[:n], coefficients)
         out = out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
+        if self.detail_out is not None:
+            coefficients = self.detail_out(z).reshape(z.shape[0], c.detail_path, -1)
+            detail = torch.einsum("tf,bfc->btc", self.detail_basis[:t], coefficients)
+            out = out.index_add(2, self.detail_index, detail)
         return gaussian_smooth(out, c.decoder_smoothing) if c.decoder_smoothing > 0 else out
 
     def _timing_tokens(self, timing: torch.Tensor | None, b: int, n: int) -> torch.Tensor:

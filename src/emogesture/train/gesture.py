@@ -33,7 +33,7 @@ from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_sched
 from emogesture.errors import ConfigError
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
-from emogesture.motion.skeleton import FINGER_JOINTS
+from emogesture.motion.skeleton import FINGER_JOINTS, WRIST_JOINTS
 from emogesture.pipeline.conditions import calibrate_residual, model_conditions, window_conditions
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
@@ -65,6 +65,12 @@ class GestureLossWeights:
     #: curl per hand fills 120 of the 282 numbers; at 0.1 the tiny prior reconstructed the body no
     #: better (experiments/README.md, "Where the wrists' own rotation is lost").
     finger_features: float = 1.0
+    #: Weight of the two wrist joints' features inside L_rec and L_align (not in the paper; 1 = every
+    #: feature alike, as in both presets). A stroke turns the wrist in a random direction, which the
+    #: speech's timing stream cannot place, so only the latent can carry it; at 20 a prior trained alone
+    #: for 400 steps kept the wrists' rotation no better (experiments/README.md, "Where the wrists' own
+    #: rotation is lost"): the decoder's temporal detail, not the loss, limits it.
+    wrist_features: float = 1.0
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
 
@@ -176,6 +182,8 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         for k, j in enumerate(self.spec.joints):
             if j in FINGER_JOINTS:
                 weight[6 * k: 6 * k + 6] = self.cfg.losses.finger_features
+            elif j in WRIST_JOINTS:
+                weight[6 * k: 6 * k + 6] = self.cfg.losses.wrist_features
         self.register_buffer("feature_weight", weight, persistent=False)
         self.body = SkeletonBody()
         for p in self.body.parameters():
@@ -189,8 +197,8 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         return self.body.forward_features(normalised * self.std + self.mean, self.spec)
 
     def feature_loss(self, motion: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """Smooth L1 between normalised features ``[B, T, D]``, the finger joints' weighted by
-        ``losses.finger_features`` (at 1, the plain mean)."""
+        """Smooth L1 between normalised features ``[B, T, D]``, the finger and wrist joints' weighted by
+        ``losses.finger_features`` and ``losses.wrist_features`` (both at 1: the plain mean)."""
         return (F.smooth_l1_loss(motion, target, reduction="none") * self.feature_weight).mean()
 
     def joint_loss(self, joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
