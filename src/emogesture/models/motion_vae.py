@@ -223,6 +223,13 @@ def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
     return 0.5 * (mu.pow(2) + logvar.exp() - logvar - 1.0).sum(dim=-1).mean()
 
 
+def dct_basis(n: int, count: int) -> torch.Tensor:
+    """The first ``count`` DCT-II cosines over ``n`` samples, unnormalised: ``[n, count]``, column f is
+    ``cos(π f (j + ½) / n)``."""
+    j = torch.arange(n, dtype=torch.float32)[:, None] + 0.5
+    return torch.cos(torch.pi * j * torch.arange(count) / n)
+
+
 class MotionVAE(nn.Module):
     """Transformer VAE over motion-feature windows; see the module docstring."""
 
@@ -249,8 +256,7 @@ class MotionVAE(nn.Module):
         # Low-frequency path (not in MLD, off in the paper preset); see the module docstring.
         f = c.low_frequency_path
         if f:
-            j = torch.arange(tokens, dtype=torch.float32)[:, None] + 0.5
-            self.register_buffer("dct_basis", torch.cos(torch.pi * j * torch.arange(f) / tokens), persistent=False)
+            self.register_buffer("dct_basis", dct_basis(tokens, f), persistent=False)
             self.low_frequency_mu = nn.Linear(f * d, c.latent_dim)
             self.low_frequency_out = nn.Linear(c.latent_dim, f * k * c.feature_dim)
             nn.init.zeros_(self.low_frequency_out.weight)  # starts as a no-op: random cosines would only add noise
@@ -258,9 +264,7 @@ class MotionVAE(nn.Module):
         else:
             self.dct_basis = self.low_frequency_mu = self.low_frequency_out = None
         if c.detail_path:  # the detail path (frames_per_token is 1 here)
-            j = torch.arange(c.frames, dtype=torch.float32)[:, None] + 0.5
-            self.register_buffer("detail_basis", torch.cos(torch.pi * j * torch.arange(c.detail_path) / c.frames),
-                                 persistent=False)
+            self.register_buffer("detail_basis", dct_basis(c.frames, c.detail_path), persistent=False)
             self.register_buffer("detail_index", torch.tensor(c.detail_columns, dtype=torch.long), persistent=False)
             self.detail_mu = nn.Linear(c.detail_path * len(c.detail_columns), c.latent_dim)
             self.detail_out = nn.Linear(c.latent_dim, c.detail_path * len(c.detail_columns))
