@@ -44,7 +44,7 @@ def speeds(pipe: GesturePipeline, feats: np.ndarray) -> list[float]:
 def column_correlation(pipe: GesturePipeline, rec: np.ndarray, motion: np.ndarray, names: tuple[str, ...]) -> str:
     """The lowest and highest correlation of ``rec`` with ``motion`` over the named joints' 6D columns
     that move (a column constant in the motion has no correlation)."""
-    cols = [6 * k + i for k, j in enumerate(pipe.spec.joints) if JOINT_NAMES[j] in names for i in range(6)]
+    cols = pipe.spec.columns(JOINT_NAMES.index(n) for n in names)
     r = [np.corrcoef(rec[..., c].ravel(), motion[..., c].ravel())[0, 1] for c in cols if motion[..., c].std() > 0]
     return f"{min(r):.2f}–{max(r):.2f}"
 
@@ -78,14 +78,15 @@ def main() -> None:
         name, _, path = spec.rpartition("=")
         name = name or path
         pipe = GesturePipeline.from_run(path)
-        if i == 0:
+        if i == 0:  # every model poses the same skeleton
+            truth = joints(pipe, motion)
             row("ground truth", speeds(pipe, motion))
             cutoff = pipe.loaded.config.vae.output_lowpass_hz
             if cutoff:
                 row(f"ground truth, low-passed at {cutoff:g} Hz", speeds(pipe, lowpass(torch.tensor(motion), cutoff).numpy()))
         z = encode_motion(pipe.loaded, motion)
         rec = decode_latents(pipe.loaded, z, motion.shape[1], timing=stream, generation=False)
-        err = np.linalg.norm(joints(pipe, rec)[..., upper, :] - joints(pipe, motion)[..., upper, :], axis=-1).mean()
+        err = np.linalg.norm(joints(pipe, rec)[..., upper, :] - truth[..., upper, :], axis=-1).mean()
         row(f"{name}: reconstruction", speeds(pipe, rec), f"{err * 1000:.1f} mm",
             column_correlation(pipe, rec, motion, ("left_wrist", "right_wrist")),
             column_correlation(pipe, rec, motion, ("left_elbow", "right_elbow")))

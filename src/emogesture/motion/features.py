@@ -38,6 +38,11 @@ class MotionFeatureSpec:
         """Numbers per frame: ``6 * len(joints) + 3 * include_translation``."""
         return 6 * len(self.joints) + 3 * int(self.include_translation)
 
+    def columns(self, joints) -> list[int]:
+        """The feature columns (6 per joint, in feature order) of those of ``joints`` the spec holds."""
+        wanted = set(joints)
+        return [6 * k + i for k, j in enumerate(self.joints) if j in wanted for i in range(6)]
+
     @classmethod
     def all_joints(cls) -> "MotionFeatureSpec":
         """All 55 joints plus root translation (333 numbers per frame)."""

@@ -68,8 +68,8 @@ class GestureLossWeights:
     #: Weight of the two wrist joints' features inside L_rec and L_align (not in the paper; 1 = every
     #: feature alike, as in both presets). A stroke turns the wrist in a random direction, which the
     #: speech's timing stream cannot place, so only the latent can carry it; at 20 a prior trained alone
-    #: for 400 steps kept the wrists' rotation no better (experiments/README.md, "Where the wrists' own
-    #: rotation is lost"): the decoder's temporal detail, not the loss, limits it.
+    #: for 400 steps kept the wrists' rotation no better (experiments/README.md, "Why the prior drops
+    #: the wrists").
     wrist_features: float = 1.0
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
@@ -179,11 +179,8 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         self.register_buffer("mean", torch.tensor(motion_mean, dtype=torch.float32))
         self.register_buffer("std", torch.tensor(motion_std, dtype=torch.float32))
         weight = torch.ones(self.spec.dim)
-        for k, j in enumerate(self.spec.joints):
-            if j in FINGER_JOINTS:
-                weight[6 * k: 6 * k + 6] = self.cfg.losses.finger_features
-            elif j in WRIST_JOINTS:
-                weight[6 * k: 6 * k + 6] = self.cfg.losses.wrist_features
+        weight[self.spec.columns(FINGER_JOINTS)] = self.cfg.losses.finger_features
+        weight[self.spec.columns(WRIST_JOINTS)] = self.cfg.losses.wrist_features
         self.register_buffer("feature_weight", weight, persistent=False)
         self.body = SkeletonBody()
         for p in self.body.parameters():
