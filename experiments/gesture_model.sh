@@ -8,7 +8,8 @@
 # Comparisons are made on the val split (calibrated on, never trained on); the test split is scored
 # once, for the report (paper Table 1 layout plus the prior's reconstruction error, emotion edits and a
 # 65-s long-audio seam check, each check able to fail).
-# "Ours without the stream" is the tiny design before issue 18 (48 cosines, the decoder deaf to timing).
+# "Ours without the stream" is the tiny design before issue 18 (48 cosines, the decoder deaf to timing,
+# no wrist path).
 # Four trainings side by side, one CPU thread each (about 60 min on 2 cores), then the evaluations:
 # val with 4 sampling seeds, test once.
 # Writes experiments/reports/gesture_model/{val,test}/, val_seeds.md and training_time.txt.
@@ -24,9 +25,20 @@ BUNDLE=src/emogesture/assets/model
 SPEECH=$BUNDLE/speech.json
 mkdir -p "$REPORT"
 
+sha_of() {  # key model.json -> the SHA256 under that key (nothing when absent)
+    grep -so "\"$1\": \"[0-9a-f]*\"" "$2" | head -1 | grep -o '[0-9a-f]\{64\}' || true
+}
+SPEECH_SHA=$(sha_of weights_sha256 "$SPEECH")
 train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> on one thread, writes its wall time
-    local name=$1 variant=$2 steps=$3 start resumed=""
+    local name=$1 variant=$2 steps=$3 start resumed="" old
     shift 3
+    # a run (finished or not) on another speech model, e.g. before `make model` rebuilt the bundle, is
+    # moved aside, not resumed
+    old=$(sha_of speech_weights_sha256 "$WORK/gesture_$name/model.json")  # none for no_audio
+    if [ -n "$old" ] && [ "$old" != "$SPEECH_SHA" ]; then
+        echo "gesture_$name was trained on another speech model; moved to gesture_$name.speech-${old:0:8}"
+        mv "$WORK/gesture_$name" "$WORK/gesture_$name.speech-${old:0:8}"
+    fi
     grep -qs "\"step\": $steps" "$WORK/gesture_$name/model.json" && return 0
     [ -f "$WORK/gesture_$name/checkpoints/last.ckpt" ] && resumed=", resumed from a checkpoint: the time of the resumed part"
     start=$(date +%s)
@@ -36,11 +48,11 @@ train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> 
     echo "$name: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside other trainings$resumed)" \
         > "$WORK/gesture_$name.time"
 }
-# "ours without the stream" (issue 18): the tiny design before it, 48 cosines and no timing stream
+# "ours without the stream" (issue 18): the tiny design before it, 48 cosines, no timing stream, no wrist path
 train disjoint disjoint "$JOINT_STEPS" & train no_prior no_prior "$STEPS" & train no_audio no_audio "$STEPS" &
 train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set model.vae.timing_features=0 \
     --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 \
-    --set model.vae.output_lowpass_hz=0 &
+    --set model.vae.output_lowpass_hz=0 --set model.vae.detail_path=0 --set "model.vae.detail_columns=[]" &
 wait
 { grep '^gesture' experiments/reports/bundled_model/training_time.txt | sed 's/^gesture/joint (ours, the bundled model)/'
   for f in "$WORK"/gesture_{no_stream,disjoint,no_prior,no_audio}.time; do if [ -f "$f" ]; then cat "$f"; fi; done

@@ -93,6 +93,8 @@ def main(bundle: str, report: str, times: str) -> None:
     stats = gesture["table"]["motion_stats"]
     wrist_ratio = float(np.mean([stats["ours"]["angular_speed"][j] / stats["GT"]["angular_speed"][j]
                                  for j in ("left_wrist", "right_wrist")]))
+    wrists = " / ".join(f"{stats['ours']['angular_speed'][j]:.3f}" for j in ("left_wrist", "right_wrist"))
+    wrists += " rad/frame, left / right"
     rhythm_text = rhythm_paragraph(rows)
     seams_text = seams_paragraph(gesture["checks"])
     text = f"""# Model card: the bundled emogesture model
@@ -174,8 +176,9 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 - **Motion.** The gestures are those of a procedural corpus: upper body only (legs, fingers, face
   stay at rest); the root does not travel. Since corpus version 3 the training motion turns at speeds within
   the range of real conversational motion capture, joint by joint. This model's hands move at
-  {ours['Speed']:.2f} m/s (the ground truth's {gt['Speed']:.2f}), but its wrists turn at {wrist_ratio:.0%} of the
-  ground truth's angular speed (`emogesture motion-stats`; the tables are in `experiments/README.md`).
+  {ours['Speed']:.2f} m/s (the ground truth's {gt['Speed']:.2f}), and its wrists turn at {wrist_ratio:.0%} of the
+  ground truth's angular speed ({wrists}; the two real takes of issue 17: 0.023–0.038 / 0.032–0.041;
+  `emogesture motion-stats`; the tables are in `experiments/README.md`).
   The gestures are generic beats and reaches, not the meaningful (iconic, deictic) gestures people make.
 - **Speakers.** `--style-from` can only take styles like the eight it knows; another voice gives a
   style somewhere between them.

@@ -36,6 +36,17 @@ def test_presets_and_validation():
         MotionVAEConfig(width=66, heads=4)
     with pytest.raises(ConfigError):
         MotionVAEConfig.preset("huge")
+    # the tiny preset that hears timing gives the wrists (and only them) their own 24-cosine path
+    from emogesture.motion.features import MotionFeatureSpec
+    from emogesture.motion.skeleton import JOINT_NAMES
+
+    hears = MotionVAEConfig.preset("tiny", timing=True)
+    spec = MotionFeatureSpec()
+    named = {JOINT_NAMES[spec.joints[c // 6]] for c in hears.detail_columns}
+    assert (hears.detail_path, len(hears.detail_columns), named) == (24, 12, {"left_wrist", "right_wrist"})
+    assert MotionVAEConfig.preset("tiny").detail_path == 0 and MotionVAEConfig.preset("paper").detail_path == 0
+    assert MotionVAEConfig.preset("tiny", frames=20, timing=True).detail_path == 20
+    assert MotionVAEConfig.preset("tiny", feature_dim=333, timing=True).detail_path == 0  # another layout: off
 
 
 def test_shapes_and_variable_length(tiny):
