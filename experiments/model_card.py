@@ -91,10 +91,10 @@ def main(bundle: str, report: str, times: str) -> None:
     shares = [r["share_blended_toward_neutral"] for r in shift["rows"].values()]
     blended_orig, blended_lo, blended_hi = shares[0], min(shares[1:]), max(shares[1:])
     stats = gesture["table"]["motion_stats"]
-    wrist_ratio = float(np.mean([stats["ours"]["angular_speed"][j] / stats["GT"]["angular_speed"][j]
-                                 for j in ("left_wrist", "right_wrist")]))
-    wrists = " / ".join(f"{stats['ours']['angular_speed'][j]:.3f}" for j in ("left_wrist", "right_wrist"))
-    wrists += " rad/frame, left / right"
+    ours_wrists = [stats["ours"]["angular_speed"][j] for j in ("left_wrist", "right_wrist")]
+    gt_wrists = [stats["GT"]["angular_speed"][j] for j in ("left_wrist", "right_wrist")]
+    wrist_ratio = float(np.mean(np.divide(ours_wrists, gt_wrists)))
+    wrists = " / ".join(f"{v:.3f}" for v in ours_wrists) + " rad/frame, left / right"
     rhythm_text = rhythm_paragraph(rows)
     seams_text = seams_paragraph(gesture["checks"])
     text = f"""# Model card: the bundled emogesture model
