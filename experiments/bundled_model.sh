@@ -7,7 +7,8 @@
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside it;
 #   3. the gesture model (tiny, joint, 1200 steps; its residual noise is calibrated on val);
 #   4. the speech model's emotion perception (class means on train, trust threshold on val);
-#   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS;
+#   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS; the gesture model with
+#      the tiny preset's current generation settings ($GENERATION in common.sh), however old its run;
 #   6. the bundle scored on the test texts (speech and gesture reports, --emotion auto vs own), and
 #      the model card written from those numbers; then the bundle is copied into the package.
 # Usage: experiments/bundled_model.sh
@@ -50,7 +51,7 @@ grep -qs '"step": 1200' "$RUN/gesture/model.json" || timed gesture $EG train ges
     --out "$RUN/speech_calibrated"
 BUNDLE=$RUN/bundle
 $EG bundle --speech "$RUN/speech_calibrated" --gesture "$RUN/gesture" --extractor "$RUN/extractor" --out "$BUNDLE" \
-    --overwrite
+    --overwrite "${GENERATION[@]}"
 
 # 6. the bundle, as shipped (float16), scored once on the test texts; the card; into the package
 $EG evaluate speech "$BUNDLE/speech.json" --data "$CACHE" --split test --out "$REPORT/speech" --overwrite

@@ -58,8 +58,11 @@ wait
   for f in "$WORK"/gesture_{no_stream,disjoint,no_prior,no_audio}.time; do if [ -f "$f" ]; then cat "$f"; fi; done
 } | tee "$REPORT/training_time.txt"
 
+# disjoint hears the stream as ours does: scored with the same generation settings (common.sh), float16 as ours
+$EG bundle --speech "$SPEECH" --gesture "$WORK/gesture_disjoint" --out "$WORK/gesture_disjoint_bundle" --overwrite \
+    "${GENERATION[@]}" > /dev/null
 MODELS=(--model "ours=$BUNDLE/gesture.json" --model "ours without the stream=$WORK/gesture_no_stream"
-        --model "disjoint=$WORK/gesture_disjoint"
+        --model "disjoint=$WORK/gesture_disjoint_bundle/gesture.json"
         --model "no prior=$WORK/gesture_no_prior" --model "no audio model=$WORK/gesture_no_audio")
 for split in val test; do
     $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split "$split" \

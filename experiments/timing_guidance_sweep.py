@@ -82,17 +82,20 @@ def main() -> None:
         setting = f"w {w:g}, σ {s:g}" + (f", low-pass {c:g} Hz" if c else "")
         name = (f"r 1, {setting}, the stream of another window" if r == "other" else f"r {r:g}, {setting}")
         rows.append((name, row, ev.motion_stats(motion)))
-        print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}), flush=True)
+        wrists = [round(rows[-1][2]["angular_speed"][j], 4) for j in ("left_wrist", "right_wrist")]
+        print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}), wrists,
+              flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
              f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
              "low-pass's cutoff (`vae.output_lowpass_hz`). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`); GT's gain / spread is in the gesture report.", "",
-             "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | right wrist (rad/frame) |",
+             "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | wrists L / R (rad/frame) |",
              "|---|---|---|---|---|---|---|---|"]
     for name, row, st in rows:
         lines.append(f"| {name} | {row['Rhythm']:.3f} | {row['GA']:.3f} | {row['FGD']:.2f} | {row['Div']:.2f} | "
-                     f"{row['Speed']:.3f} | {row['Jerk']:.1f} | {st['angular_speed']['right_wrist']:.4f} |")
+                     f"{row['Speed']:.3f} | {row['Jerk']:.1f} | {st['angular_speed']['left_wrist']:.4f} / "
+                     f"{st['angular_speed']['right_wrist']:.4f} |")
     write_text_atomic(args.out, "\n".join(lines) + "\n")
 
 

@@ -200,3 +200,36 @@ def test_bf16_autocast_drift_of_the_bundled_model(pipe, clip30):
     b = joints_of(bf16.generate(wave, seed=2, seam_candidates=1)[0])
     mm = np.linalg.norm(a - b, axis=-1) * 1000
     assert 0 < mm.mean() < 2 and mm.max() < 20, (mm.mean(), mm.max())
+
+
+def test_bundle_changes_generation_settings_and_nothing_else(tmp_path):
+    out = tmp_path / "b"
+    proc = run_cli("bundle", "--speech", str(bundled_model_file("speech")), "--gesture",
+                   str(bundled_model_file("gesture")), "--out", str(out), "--set", "vae.timing_guidance=2.5",
+                   "--set", "vae.output_lowpass_hz=3")
+    assert proc.returncode == 0, proc.stderr
+    names = verify_checksums(out)
+    assert "gesture.json" in names and "extractor.json" not in names
+    shipped, rebundled = load_model(bundled_model_file("gesture"), "gesture"), load_model(out / "gesture.json", "gesture")
+    assert (rebundled.config.vae.timing_guidance, rebundled.config.vae.output_lowpass_hz) == (2.5, 3.0)
+    assert rebundled.config.vae.low_frequency_path == shipped.config.vae.low_frequency_path
+    assert rebundled.meta["weights_sha256"] == shipped.meta["weights_sha256"]
+    proc = run_cli("bundle", "--speech", str(bundled_model_file("speech")), "--gesture",
+                   str(bundled_model_file("gesture")), "--out", str(tmp_path / "c"), "--set", "vae.width=8")
+    assert proc.returncode != 0 and "only generation settings" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_the_bundle_and_the_experiment_scripts_generate_with_the_tiny_presets_settings():
+    from emogesture.models.gesture import GENERATION_SETTINGS, GestureModelConfig
+
+    line = next(x for x in (Path(__file__).parents[1] / "experiments" / "common.sh").read_text().splitlines()
+                if x.startswith("GENERATION="))
+    scripted = dict(item.split("=", 1) for item in line.split("--set ")[1:])
+    assert scripted and set(k.strip() for k in scripted) <= set(GENERATION_SETTINGS)
+    tiny = GestureModelConfig.preset("tiny").vae
+    shipped = load_model(bundled_model_file("gesture"), "gesture").config.vae
+    for key in GENERATION_SETTINGS:
+        field = key.split(".", 1)[1]
+        assert getattr(shipped, field) == getattr(tiny, field), key
+        if key in {k.strip() for k in scripted}:
+            assert float(scripted[key].strip(" )")) == getattr(tiny, field), key

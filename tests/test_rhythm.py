@@ -90,6 +90,23 @@ def test_timing_stream_marks_an_onset_in_its_motion_frame_and_is_silent_on_silen
     assert not stream[1].any()  # a window without change carries no timing
 
 
+def test_timing_stream_repeats_the_last_real_frame_past_the_audio():
+    level = -1.0 + 0.5 * np.sin(2 * np.pi * np.arange(1024) / 37.0)  # syllables every 0.37 s
+    fbank = np.broadcast_to(level[None, :, None], (3, 1024, 128)).astype(np.float32).copy()
+    fbank[:, 998:] = 0.0  # a window aligned to end with its audio: zeros past the fbank's last frame
+    padded = timing_stream(fbank)
+    assert padded[0, -1, 1] > 2 * padded[0, :-1, 1].max()  # the zeros read as the window's strongest onset
+    stream = timing_stream(fbank, lengths=[998, 998, 1024])
+    assert np.abs(stream[0, -1]).max() < 2.5 and stream[0, -1, 1] < stream[0, :-1, 1].max()
+    edge = fbank.copy()
+    edge[0, 998:] = edge[0, 997]
+    np.testing.assert_allclose(stream[0], timing_stream(edge[:1])[0], atol=1e-5)
+    np.testing.assert_array_equal(stream[2], padded[2])  # a window of real frames is unchanged
+    assert not timing_stream(fbank[:1], lengths=[0]).any()  # no real frame: silence
+    with pytest.raises(ValueError, match="lengths"):
+        timing_stream(fbank, lengths=[998])
+
+
 def test_denoiser_timing_tokens_are_used_and_checked():
     cfg = DenoiserConfig(width=32, layers=3, heads=2, ff_dim=32, dropout=0.0, timing_tokens=10)
     assert cfg.num_tokens == 15 and cfg.num_inputs == 4

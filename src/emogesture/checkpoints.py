@@ -346,10 +346,12 @@ def verify_checksums(folder: str | PathLike[str]) -> list[str]:
 
 def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], extractor: str | PathLike[str] | None,
                   out: str | PathLike[str], overwrite: bool = False,
-                  weights_dtype: torch.dtype | None = torch.float16) -> Path:
+                  weights_dtype: torch.dtype | None = torch.float16, generation: list[str] = ()) -> Path:
     """Copy a speech model, the gesture model trained on it and (optionally) an extractor into one folder
     as ``speech.*``, ``gesture.*``, ``extractor.*`` with ``weights_dtype`` weights; the gesture model then
-    names its speech model by the relative path ``speech.json``. Writes ``SHA256SUMS``; returns ``out``."""
+    names its speech model by the relative path ``speech.json``. ``generation``: ``key=value`` changes
+    of the gesture model's generation settings (:meth:`GestureModelConfig.with_generation_settings`).
+    Writes ``SHA256SUMS``; returns ``out``."""
     out = Path(out)
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise OutputExistsError(out)
@@ -358,10 +360,11 @@ def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], ext
     g = load_model(gesture, "gesture")
     if g.extra.get("speech_weights_sha256") != s.meta["weights_sha256"]:
         raise InputFileError(s.path, f"is not the speech model {g.path} was trained with")
+    g_config = g.config.with_generation_settings(list(generation)) if generation else g.config
     save_model(out, "speech", s.model, s.config, s.extra, name="speech", weights_dtype=weights_dtype)
     speech_sha = read_meta(out, "speech", "speech")["weights_sha256"]
     extra = {**g.extra, "speech_model": "speech.json", "speech_weights_sha256": speech_sha}
-    save_model(out, "gesture", g.model, g.config, extra, name="gesture", weights_dtype=weights_dtype)
+    save_model(out, "gesture", g.model, g_config, extra, name="gesture", weights_dtype=weights_dtype)
     if extractor is not None:
         x = load_model(extractor, "extractor")
         save_model(out, "extractor", x.model, x.config, x.extra, name="extractor", weights_dtype=weights_dtype)

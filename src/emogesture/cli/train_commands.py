@@ -76,6 +76,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gesture", required=True, type=Path, help="gesture model trained on that speech model")
     p.add_argument("--extractor", type=Path, help="motion feature extractor of the evaluation suite")
     p.add_argument("--out", required=True, type=Path, help="output folder")
+    p.add_argument("--set", dest="generation", action="append", default=[], metavar="KEY=VALUE",
+                   help="change a generation setting of the gesture model (repeatable; no retraining): "
+                        "vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz")
     p.add_argument("--overwrite", action="store_true", help="write into a folder that is not empty")
     p.set_defaults(func=run_bundle)
 
@@ -131,7 +134,8 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
 def run_bundle(args: argparse.Namespace) -> int:
     from emogesture.checkpoints import bundle_models
 
-    out = bundle_models(args.speech, args.gesture, args.extractor, args.out, args.overwrite)
+    out = bundle_models(args.speech, args.gesture, args.extractor, args.out, args.overwrite,
+                        generation=args.generation)
     for path in sorted(out.iterdir()):
         print(f"{path}  ({path.stat().st_size / 1e6:.2f} MB)")
     return 0

@@ -16,12 +16,16 @@ from dataclasses import dataclass, field
 import torch
 from torch import nn
 
+from emogesture.config import apply_overrides, to_dict
 from emogesture.diffusion.schedulers import DiffusionConfig
 from emogesture.errors import ConfigError
 from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
 from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
 
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
+#: Settings that change how a trained gesture model generates, not what it learned: they can be changed
+#: on a trained model (``emogesture bundle --set``) without retraining.
+GENERATION_SETTINGS = ("vae.timing_guidance", "vae.output_smoothing", "vae.output_lowpass_hz")
 
 
 @dataclass
@@ -52,6 +56,15 @@ class GestureModelConfig:
                               f"({self.vae.frames}): the stream covers the window's motion frames")
         if self.vae.latent_dim != self.denoiser.latent_dim:
             raise ConfigError("vae.latent_dim and denoiser.latent_dim must agree")
+
+    def with_generation_settings(self, overrides: list[str]) -> "GestureModelConfig":
+        """A copy with ``key=value`` overrides of :data:`GENERATION_SETTINGS` (e.g. ``vae.timing_guidance=3``)."""
+        for item in overrides:
+            key = item.split("=", 1)[0].strip()
+            if "=" not in item or key not in GENERATION_SETTINGS:
+                raise ConfigError(f"{item!r}: only generation settings can change on a trained model, as "
+                                  f"key=value with key one of {', '.join(GENERATION_SETTINGS)}")
+        return apply_overrides(GestureModelConfig, to_dict(self), overrides)
 
     @property
     def hears_timing(self) -> bool:

@@ -115,7 +115,7 @@ class SpeechLatentEncoder:
             starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
             frames = [int(round(s * FBANK_RATE)) for s in starts]
             windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
-            timing = timing_stream(windows)
+            timing = timing_stream(windows, lengths=[len(fb) - f for f in frames])
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing = timing
