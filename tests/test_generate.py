@@ -98,6 +98,31 @@ def test_bf16_autocast_drifts_little_and_fp32_is_exact(runs):
     assert np.array_equal(a.poses, again.poses)
 
 
+def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():
+    from torch import nn
+
+    from emogesture.runtime import autocast
+
+    torch.manual_seed(0)
+    net = nn.Sequential(nn.Linear(8, 16), nn.LayerNorm(16), nn.GELU(), nn.Linear(16, 4, bias=False))
+    x = torch.randn(5, 8)
+    weights = [p for p in net.parameters()]
+    with torch.inference_mode():
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            plain = net(x)
+        with autocast("bf16", "cpu", net):
+            assert net[0].weight.dtype == torch.bfloat16 and net[1].weight.dtype == torch.float32
+            cast_once = net(x)
+        with autocast("fp32", "cpu", net):
+            exact = net(x)
+    assert torch.equal(plain, cast_once) and plain.dtype == torch.bfloat16 and exact.dtype == torch.float32
+    assert all(a is b for a, b in zip(weights, net.parameters()))  # the float32 parameters are back
+    with pytest.raises(RuntimeError, match="inside"):
+        with autocast("bf16", "cpu", net):
+            raise RuntimeError("inside")
+    assert all(a is b for a, b in zip(weights, net.parameters()))  # also after an error
+
+
 def test_device_and_precision_flags(runs, tmp_path):
     from emogesture.errors import EmogestureError
     from emogesture.runtime import native_bf16, resolve_device, resolve_precision

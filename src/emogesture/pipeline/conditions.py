@@ -108,7 +108,7 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         if model.audio_ae is not None:
             conds = [model.audio_ae(conds[0])[0]]
         generators = make_generators(seeds[i : i + batch_size])
-        with autocast(precision, device):
+        with autocast(precision, device, model.denoiser):
             z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps,
                             eta=cfg.diffusion.eta)
         z = z.float()
@@ -159,7 +159,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     for i in range(0, len(z), batch_size):
         stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
                   if reads and timing is not None else None)
-        with autocast(precision, z.device):
+        with autocast(precision, z.device, model.prior):
             if guided:
                 heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
             else:

@@ -93,7 +93,7 @@ class SpeechLatentEncoder:
             if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
                 raw = x * (2 * renormalise[1]) + renormalise[0]
                 x = (raw - self.fbank_mean) / (2 * self.fbank_std)
-            with autocast(self.precision, self.device):
+            with autocast(self.precision, self.device, self.model):
                 enc = self.model.encode(x, parts=parts)
             for store, value in zip(stores, enc):
                 store.append(value.float().cpu().numpy())
