@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from emogesture.checkpoints import write_checksums
+from emogesture.checkpoints import write_checksums, write_text_atomic
 from emogesture.data.synthetic.corpus import CORPUS_VERSION
 from emogesture.pipeline.generate import HOP_SECONDS
 
@@ -78,12 +78,14 @@ def main(bundle: str, report: str, times: str) -> None:
         "wrist speed (m/s)": ours["Speed"], "wrist speed, ground truth": gt["Speed"],
         "jerk (m/s^3)": ours["Jerk"], "jerk, ground truth": gt["Jerk"],
     }
-    sizes = {p.name: p.stat().st_size for p in sorted(bundle.iterdir()) if p.suffix in (".json", ".safetensors")}
+    # the models' files (not this card, whose size would depend on the card written before it)
+    sizes = {p.name: p.stat().st_size for p in sorted(bundle.iterdir())
+             if p.suffix in (".json", ".safetensors") and p.name != "card.json"}
     card = {"split": "test", "corpus": "default synthetic corpus (emogesture corpus, seed 0)", "metrics": metrics,
             "emotion_perception_thresholds": {k: perception[k]["threshold"] for k in ("emotion", "voice")},
             "sizes_bytes": sizes,
             "training_seconds": Path(times).read_text().strip().splitlines()}
-    (bundle / "card.json").write_text(json.dumps(card, indent=1) + "\n")
+    write_text_atomic(bundle / "card.json", json.dumps(card, indent=1) + "\n")
 
     shift_rows = "\n".join(
         f"| {name} | {r['perceived_correctly']:.2f} | {r['median_distance_over_threshold']:.2f} | "
@@ -186,7 +188,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 - **Speakers.** `--style-from` can only take styles like the eight it knows; another voice gives a
   style somewhere between them.
 """
-    (bundle / "MODEL_CARD.md").write_text(text)
+    write_text_atomic(bundle / "MODEL_CARD.md", text)
     write_checksums(bundle)
     print(text)
 
