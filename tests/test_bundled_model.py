@@ -224,12 +224,16 @@ def test_the_bundle_and_the_experiment_scripts_generate_with_the_tiny_presets_se
 
     line = next(x for x in (Path(__file__).parents[1] / "experiments" / "common.sh").read_text().splitlines()
                 if x.startswith("GENERATION="))
-    scripted = dict(item.split("=", 1) for item in line.split("--set ")[1:])
-    assert scripted and set(k.strip() for k in scripted) <= set(GENERATION_SETTINGS)
-    tiny = GestureModelConfig.preset("tiny").vae
-    shipped = load_model(bundled_model_file("gesture"), "gesture").config.vae
+    scripted = {k.strip(): v.strip(" )") for k, v in (item.split("=", 1) for item in line.split("--set ")[1:])}
+    assert scripted and set(scripted) <= set(GENERATION_SETTINGS)
+    tiny = GestureModelConfig.preset("tiny")
+    shipped = load_model(bundled_model_file("gesture"), "gesture").config
+
+    def value(config, key):
+        section, field = key.split(".")
+        return getattr(getattr(config, section), field)
+
     for key in GENERATION_SETTINGS:
-        field = key.split(".", 1)[1]
-        assert getattr(shipped, field) == getattr(tiny, field), key
-        if key in {k.strip() for k in scripted}:
-            assert float(scripted[key].strip(" )")) == getattr(tiny, field), key
+        assert value(shipped, key) == value(tiny, key), key
+        if key in scripted:
+            assert float(scripted[key]) == value(tiny, key), key

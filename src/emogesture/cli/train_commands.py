@@ -78,7 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--set", dest="generation", action="append", default=[], metavar="KEY=VALUE",
                    help="change a generation setting of the gesture model (repeatable; no retraining): "
-                        "vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz")
+                        "vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz, "
+                        "diffusion.num_inference_steps, diffusion.residual_scale")
     p.add_argument("--overwrite", action="store_true", help="write into a folder that is not empty")
     p.set_defaults(func=run_bundle)
 

@@ -25,7 +25,8 @@ from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
 #: Settings that change how a trained gesture model generates, not what it learned: they can be changed
 #: on a trained model (``emogesture bundle --set``) without retraining.
-GENERATION_SETTINGS = ("vae.timing_guidance", "vae.output_smoothing", "vae.output_lowpass_hz")
+GENERATION_SETTINGS = ("vae.timing_guidance", "vae.output_smoothing", "vae.output_lowpass_hz",
+                       "diffusion.num_inference_steps", "diffusion.residual_scale")
 
 
 @dataclass
