@@ -129,10 +129,12 @@ def main() -> None:
     ap.add_argument("--lengths", default="10,60,600", help="seconds of audio, comma-separated (default 10,60,600)")
     ap.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"])
     ap.add_argument("--device", default="cpu")
+    ap.add_argument("--repeats", type=int, default=2, help="runs per length and setting, the best kept (default 2)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     lengths = [float(x) for x in args.lengths.split(",")]
-    result = {"machine": machine.describe(args.device), **run(args.preset, lengths, args.precision, args.device)}
+    result = {"machine": machine.describe(args.device),
+              **run(args.preset, lengths, args.precision, args.device, args.repeats)}
     print(table(result))
     machine.write_json(args.json, result)
 
