@@ -72,6 +72,10 @@ def test_every_variant_trains_and_logs_its_terms(trained):
     assert set(means) == {"neutral", "happiness"} and len(means["neutral"]) == 256
 
 
+def truth_stretches(r: dict) -> int:
+    return len(r["long_audio"]["ground_truth"]["per_stretch"])
+
+
 def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     d = trained
     args = ["evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext", "--out", tmp_path / "r",
@@ -91,7 +95,11 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     assert r["long_audio"]["expected_frames"] == 900
     assert r["long_audio"]["candidates_1"]["frames"] == r["long_audio"]["candidates_4"]["frames"] == 900
     assert r["long_audio"]["candidates_1"]["seeds"] == 4  # unselected windows: four draws' seam jumps pooled
-    truth = r["long_audio"]["ground_truth"]  # the seam statistics of the same stretch's real motion
+    stretches = r["long_audio"]["stretches"]  # over stretches starting at different takes
+    assert r["long_audio"]["candidates_1"]["stretches"] == len(stretches) == truth_stretches(r) >= 2
+    assert stretches[0]["takes"] == r["long_audio"]["takes"] and stretches[1]["takes"][0] != stretches[0]["takes"][0]
+    assert sum(v["seam_jumps"] for v in stretches) == r["long_audio"]["candidates_1"]["seam_jumps"]
+    truth = r["long_audio"]["ground_truth"]  # the seam statistics of the same stretches' real motion
     assert 0 < truth["p99_seam_jump_m"] <= truth["max_seam_jump_m"]
     assert truth["takes"] >= 1 and truth["seam_jumps"] > 0 and 0 <= truth["seam_share_above_p99"] <= 1
     whole = r["long_audio"]["every_take"]  # every take generated whole, next to its ground truth

@@ -14,7 +14,7 @@ from emogesture.models.pretrained import (
 )
 from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
-from emogesture.models.vit import AudioViT, ViTConfig
+from emogesture.models.vit import BLOCKED_ATTENTION_MIN_TOKENS, AudioViT, ViTConfig, attention
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -78,6 +78,27 @@ def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
     # patch (f=1, t=2) sees bins 10..25 of frames 20..35
     manual = (vit.patch_embed.proj.weight[:, 0] * image[0, 0, 10:26, 20:36]).sum((1, 2)) + vit.patch_embed.proj.bias
     assert torch.allclose(vit.patch_embed(x)[0, 1 * 101 + 2], manual, atol=1e-4)
+
+
+def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_meant_to():
+    g = torch.Generator().manual_seed(0)
+    n = BLOCKED_ATTENTION_MIN_TOKENS + 37  # not a whole number of query blocks
+    q, k, v = (torch.randn(2, 3, n, 16, generator=g) for _ in range(3))
+    exact = F.scaled_dot_product_attention(q, k, v)
+    with torch.inference_mode():
+        blocked = attention(q.bfloat16(), k.bfloat16(), v.bfloat16()).float()
+        fused = F.scaled_dot_product_attention(q.bfloat16(), k.bfloat16(), v.bfloat16()).float()
+    # as close to float32 as torch's own bf16 kernel, and not the same computation
+    assert (blocked - exact).norm() / exact.norm() < 2 * max((fused - exact).norm() / exact.norm(), 1e-3)
+    assert not torch.equal(blocked, fused)
+    # float32, short sequences and anything that needs gradients go to torch's kernel unchanged
+    assert torch.equal(attention(q, k, v), exact)
+    with torch.inference_mode():
+        short = [x[:, :, :100].bfloat16() for x in (q, k, v)]
+        assert torch.equal(attention(*short), F.scaled_dot_product_attention(*short))
+    qg = q.bfloat16().requires_grad_()
+    attention(qg, k.bfloat16(), v.bfloat16()).float().sum().backward()
+    assert qg.grad is not None and qg.grad.abs().sum() > 0
 
 
 def test_tiny_patches_are_whole_spectrum_slices():

@@ -24,7 +24,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from emogesture.errors import ConfigError
-from emogesture.models.vit import LN_EPS, Attention, CrossAttention, Mlp, init_transformer_weights
+from emogesture.models.vit import LN_EPS, Attention, CrossAttention, Mlp, attention, init_transformer_weights
 
 
 @dataclass
@@ -71,7 +71,7 @@ class PosSelfAttention(Attention):
         qk = qk.reshape(b, n, 2, self.heads, hd).permute(2, 0, 3, 1, 4)
         v = v.reshape(b, n, self.heads, hd).transpose(1, 2)
         p = self.dropout if self.training else 0.0
-        y = F.scaled_dot_product_attention(qk[0], qk[1], v, dropout_p=p)
+        y = attention(qk[0], qk[1], v, dropout_p=p)
         return self.proj_drop(self.proj(y.transpose(1, 2).reshape(b, n, w)))
 
 
