@@ -27,7 +27,7 @@ from emogesture.errors import EmogestureError
 from emogesture.models.motion_vae import gaussian_smooth, lowpass
 from emogesture.motion import MotionFeatureSpec, guide_features
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.runtime import autocast
+from emogesture.runtime import autocast, bf16_weights
 
 
 def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
@@ -102,24 +102,25 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
     conditions = conditions[: cfg.denoiser.num_inputs]  # a stream only the decoder reads stays out
     out = []
-    for i in range(0, len(seeds), batch_size):
-        conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device)
-                 for c in conditions]
-        if model.audio_ae is not None:
-            conds = [model.audio_ae(conds[0])[0]]
-        generators = make_generators(seeds[i : i + batch_size])
-        with autocast(precision, device, model.denoiser):
-            z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps,
-                            eta=cfg.diffusion.eta)
-        z = z.float()
-        if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
-            scale = cfg.diffusion.residual_scale
-            if residual_weights is not None:
-                scale = scale * torch.as_tensor(np.asarray(residual_weights[i : i + batch_size], np.float32))
-            z = add_residual_noise(z, model.latent_residual_tril, generators, scale)
-        out.append(z)
-        if progress is not None:
-            progress(len(z))
+    with bf16_weights(precision, model.denoiser):
+        for i in range(0, len(seeds), batch_size):
+            conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device)
+                     for c in conditions]
+            if model.audio_ae is not None:
+                conds = [model.audio_ae(conds[0])[0]]
+            generators = make_generators(seeds[i : i + batch_size])
+            with autocast(precision, device):
+                z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps,
+                                eta=cfg.diffusion.eta)
+            z = z.float()
+            if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
+                scale = cfg.diffusion.residual_scale
+                if residual_weights is not None:
+                    scale = scale * torch.as_tensor(np.asarray(residual_weights[i : i + batch_size], np.float32))
+                z = add_residual_noise(z, model.latent_residual_tril, generators, scale)
+            out.append(z)
+            if progress is not None:
+                progress(len(z))
     return torch.cat(out)
 
 
@@ -156,22 +157,23 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
         spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
         m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
     out = []
-    for i in range(0, len(z), batch_size):
-        stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
-                  if reads and timing is not None else None)
-        with autocast(precision, z.device, model.prior):
+    with bf16_weights(precision, model.prior):
+        for i in range(0, len(z), batch_size):
+            stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
+                      if reads and timing is not None else None)
+            with autocast(precision, z.device):
+                if guided:
+                    heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
+                else:
+                    x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
             if guided:
-                heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
-            else:
-                x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
-        if guided:
-            x = (guide_features(deaf.float() * s + m, heard.float() * s + m, guidance, spec) - m) / s
-        x = x.float()
-        if smoothing > 0:
-            x = gaussian_smooth(x, smoothing)
-        if cutoff > 0:
-            x = lowpass(x, cutoff)
-        out.append(x.cpu().numpy())
+                x = (guide_features(deaf.float() * s + m, heard.float() * s + m, guidance, spec) - m) / s
+            x = x.float()
+            if smoothing > 0:
+                x = gaussian_smooth(x, smoothing)
+            if cutoff > 0:
+                x = lowpass(x, cutoff)
+            out.append(x.cpu().numpy())
     return np.concatenate(out) * std + mean
 
 

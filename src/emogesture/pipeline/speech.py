@@ -17,7 +17,7 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
-from emogesture.runtime import StageTimes, autocast, maybe_stage, resolve_precision
+from emogesture.runtime import StageTimes, autocast, bf16_weights, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
 
@@ -88,17 +88,18 @@ class SpeechLatentEncoder:
         of the others are skipped and their arrays are ``[W, 0]`` (see ``SpeechDisentangler.encode``).
         """
         stores: list[list[np.ndarray]] = [[] for _ in range(5)]
-        for i in range(0, len(windows), batch_size):
-            x = torch.from_numpy(np.asarray(windows[i : i + batch_size], np.float32)).to(self.device)
-            if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
-                raw = x * (2 * renormalise[1]) + renormalise[0]
-                x = (raw - self.fbank_mean) / (2 * self.fbank_std)
-            with autocast(self.precision, self.device, self.model):
-                enc = self.model.encode(x, parts=parts)
-            for store, value in zip(stores, enc):
-                store.append(value.float().cpu().numpy())
-            if progress is not None:
-                progress(len(x))
+        with bf16_weights(self.precision, self.model):
+            for i in range(0, len(windows), batch_size):
+                x = torch.from_numpy(np.asarray(windows[i : i + batch_size], np.float32)).to(self.device)
+                if renormalise is not None and renormalise != (self.fbank_mean, self.fbank_std):
+                    raw = x * (2 * renormalise[1]) + renormalise[0]
+                    x = (raw - self.fbank_mean) / (2 * self.fbank_std)
+                with autocast(self.precision, self.device):
+                    enc = self.model.encode(x, parts=parts)
+                for store, value in zip(stores, enc):
+                    store.append(value.float().cpu().numpy())
+                if progress is not None:
+                    progress(len(x))
         return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in stores))
 
     def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0,
