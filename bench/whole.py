@@ -9,9 +9,11 @@ length and setting is then run ``repeats`` times and the best wall time kept (si
 Also reported: the marginal real-time factor (extra seconds per extra second of audio, between the two
 longest clips), the scaling exponent between them (1 = linear), 4 samples against one, and an emotion
 edit (``--emotion-from`` another recording of the same length; ``--emotion LABEL``) against plain generation.
+The linearity is also measured without the start-up (:func:`in_process`): a 1.9-s start-up that varies
+by ±0.1 s hides the 60-s clip's 0.3 s of work, so the whole-process ratio is mostly that noise for tiny.
 
 Usage: python bench/whole.py [--preset tiny|paper] [--lengths 10,60,600] [--precision auto|fp32|bf16]
-                             [--json OUT]
+                             [--repeats N] [--in-process] [--json OUT]
 """
 
 from __future__ import annotations
@@ -110,6 +112,28 @@ def run(preset: str, lengths: list[float], precision: str = "auto", device: str 
             "emotion_from_over_plain": round(edit / plain, 3)}
 
 
+def in_process(preset: str, lengths: tuple[float, float] = (60.0, 600.0), precision: str = "auto",
+               device: str = "cpu", repeats: int = 3) -> dict:
+    """Linearity without the start-up: ``GesturePipeline.generate`` on each length in one process
+    (models loaded once, one untimed run first), the lengths interleaved ``repeats`` times and the best
+    kept: milliseconds per audio second at each length, and their ratio (long / short)."""
+    from emogesture.audio import load_audio
+    from emogesture.pipeline.generate import GesturePipeline
+
+    work = fixtures.scratch_folder()
+    pipe = GesturePipeline.from_run(fixtures.gesture_run(work, preset), precision=precision, device=device)
+    waves = [load_audio(fixtures.speech_file(work, s))[0] for s in lengths]
+    pipe.generate(waves[0][: 10 * 16000], seed=0)
+    best = [math.inf] * len(lengths)
+    for _ in range(repeats):
+        for i, (seconds, wave) in enumerate(zip(lengths, waves)):
+            t0 = time.perf_counter()
+            pipe.generate(wave, seed=0)
+            best[i] = min(best[i], (time.perf_counter() - t0) / seconds * 1000)
+    return {"lengths_s": list(lengths), "ms_per_audio_second": [round(x, 2) for x in best],
+            "ratio": round(best[-1] / best[0], 3), "repeats": repeats}
+
+
 def table(result: dict) -> str:
     lines = [f"**{result['preset']}** (precision {result['precision']}; whole process, npz only; best of "
              f"{result.get('repeats', 1)} after an untimed run)\n",
@@ -120,6 +144,11 @@ def table(result: dict) -> str:
               f"(ratio {result['linearity']}); on the {result['clip_for_ratios_s']:g}-s clip: 4 samples / 1 = "
               f"{result['four_over_one']}, --emotion LABEL / plain = {result['emotion_label_over_plain']}, "
               f"--emotion-from / plain = {result['emotion_from_over_plain']}"]
+    if "in_process" in result:
+        r = result["in_process"]
+        lines += ["", f"in one process (no start-up; best of {r['repeats']}, interleaved): "
+                  f"{' / '.join(f'{x} ms' for x in r['ms_per_audio_second'])} per audio second at "
+                  f"{' / '.join(f'{s:g} s' for s in r['lengths_s'])} (ratio {r['ratio']})"]
     return "\n".join(lines) + "\n"
 
 
@@ -130,11 +159,15 @@ def main() -> None:
     ap.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"])
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--repeats", type=int, default=2, help="runs per length and setting, the best kept (default 2)")
+    ap.add_argument("--in-process", action="store_true",
+                    help="also measure the linearity in one process (the two longest lengths)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     lengths = [float(x) for x in args.lengths.split(",")]
     result = {"machine": machine.describe(args.device),
               **run(args.preset, lengths, args.precision, args.device, args.repeats)}
+    if args.in_process:
+        result["in_process"] = in_process(args.preset, tuple(lengths[-2:]), args.precision, args.device)
     print(table(result))
     machine.write_json(args.json, result)
 

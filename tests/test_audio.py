@@ -531,3 +531,17 @@ def test_window_activity_counts_frames_with_sound():
     assert act == pytest.approx([1.0, 0.5, 0.0], abs=0.01)
     quiet = wave * 1e-4  # -90 dBFS: below the absolute floor
     assert window_activity(quiet.astype(np.float32), sr, [0.0]).item() == 0.0
+
+
+@pytest.mark.parametrize("options", [{}, {"snip_edges": False, "use_energy": True}, {"dither": 1.0}])
+def test_long_audio_fbank_in_chunks_equals_the_whole_computation(monkeypatch, options) -> None:
+    """Long audio goes through the filterbank in chunks of frames (bounded memory, linear time); every
+    frame is computed alone, so the chunks change nothing (the dither's draws included)."""
+    import emogesture.audio.fbank as fbank_module
+
+    x = speech_like()
+    whole = kaldi_fbank(x, generator=torch.Generator().manual_seed(3), **options)
+    monkeypatch.setattr(fbank_module, "FBANK_CHUNK_FRAMES", 7)  # 98 frames: 14 chunks
+    chunked = kaldi_fbank(x, generator=torch.Generator().manual_seed(3), **options)
+    assert whole.shape == chunked.shape and len(whole) > 7 * 10
+    assert torch.equal(whole, chunked)

@@ -159,6 +159,11 @@ def kaldi_window(window: str, length: int, blackman_coeff: float = 0.42,
     return w.to(dtype=dtype, device=device)
 
 
+#: Frames per chunk of :func:`kaldi_fbank` (5.12 s at the 10-ms shift). 10 min of audio took 0.84 s
+#: computed whole and 0.19–0.26 s in chunks of 512 (2 cores; 1024: 0.21–0.24 s, 4096: 0.38–0.55 s).
+FBANK_CHUNK_FRAMES = 512
+
+
 def _extract_frames(x: torch.Tensor, cfg: FbankConfig) -> torch.Tensor:
     length, shift = cfg.frame_length, cfg.frame_shift
     if cfg.snip_edges:
@@ -213,9 +218,28 @@ def kaldi_fbank(
     if x.ndim == 0:
         raise ValueError("waveform must have at least one dimension [N]")
     frames = _extract_frames(x, cfg)  # [..., F, L]
-    if cfg.dither > 0.0:
-        noise = torch.randn(frames.shape, generator=generator, dtype=frames.dtype)
-        frames = frames + cfg.dither * noise.to(frames.device)
+    noise = None
+    if cfg.dither > 0.0:  # drawn for every frame at once: the same draws however the frames are chunked
+        noise = torch.randn(frames.shape, generator=generator, dtype=frames.dtype).to(frames.device)
+    window = kaldi_window(cfg.window, cfg.frame_length, cfg.blackman_coeff, frames.dtype, frames.device)
+    banks = torch.tensor(np.array(cfg.mel_banks()), dtype=frames.dtype, device=frames.device).T
+    n = frames.shape[-2]
+    if n <= FBANK_CHUNK_FRAMES:
+        return _fbank_of_frames(frames, noise, window, banks, cfg)
+    # long audio in bounded chunks of frames: every frame is computed alone, so the result is the same,
+    # and the float64 intermediates (about 8 kB per frame) stay in the caches instead of growing with the
+    # audio (10 min: 60 000 frames, about 0.5 GB per whole-signal intermediate)
+    return torch.cat([_fbank_of_frames(frames[..., i: i + FBANK_CHUNK_FRAMES, :],
+                                       None if noise is None else noise[..., i: i + FBANK_CHUNK_FRAMES, :],
+                                       window, banks, cfg)
+                      for i in range(0, n, FBANK_CHUNK_FRAMES)], dim=-2)
+
+
+def _fbank_of_frames(frames: torch.Tensor, noise: torch.Tensor | None, window: torch.Tensor, banks: torch.Tensor,
+                     cfg: FbankConfig) -> torch.Tensor:
+    """Steps 2-9 of the module docstring for ``frames [..., F, L]`` -> float32 ``[..., F, bins]``."""
+    if noise is not None:
+        frames = frames + cfg.dither * noise
     if cfg.remove_dc_offset:
         frames = frames - frames.mean(dim=-1, keepdim=True)
     log_energy = None
@@ -224,12 +248,11 @@ def kaldi_fbank(
     if cfg.preemphasis != 0.0:
         k = cfg.preemphasis
         frames = torch.cat([frames[..., :1] * (1.0 - k), frames[..., 1:] - k * frames[..., :-1]], dim=-1)
-    frames = frames * kaldi_window(cfg.window, cfg.frame_length, cfg.blackman_coeff, frames.dtype, frames.device)
+    frames = frames * window
     if cfg.use_energy and not cfg.raw_energy:
         log_energy = frames.square().sum(dim=-1).clamp_min(FLOAT32_EPS).log()
     power = power_spectrum(frames, cfg.padded_window_size)  # [..., F, n_fft/2 + 1]
-    banks = torch.tensor(np.array(cfg.mel_banks()), dtype=power.dtype, device=power.device)
-    mel = (power @ banks.T).clamp_min(cfg.log_floor).log()
+    mel = (power @ banks).clamp_min(cfg.log_floor).log()
     if log_energy is not None:
         if cfg.energy_floor > 0.0:
             log_energy = log_energy.clamp_min(math.log(cfg.energy_floor))

@@ -137,8 +137,15 @@ def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64
     return torch.cat(out)
 
 
+#: Windows per batch of the motion decoder. Its activations grow with the batch (300 query tokens per
+#: window, twice with the timing guidance), and past about 32 windows they fall out of the CPU's caches:
+#: the tiny decoder took 4.9 / 4.9 / 5.2 / 6.6 ms per window in batches of 8 / 16 / 32 / 64 (2 cores,
+#: best of 6, interleaved), which made 10 min of audio (batches of 64) cost more per second than 1 min.
+DECODE_BATCH = 16
+
+
 @torch.inference_mode()
-def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = 64,
+def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = DECODE_BATCH,
                    timing: np.ndarray | None = None, precision: str = "fp32", generation: bool = True) -> np.ndarray:
     """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
     the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
@@ -156,7 +163,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     if guided:
         spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
         m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
-    out = []
+    out = np.empty((len(z), frames, vae.feature_dim), np.float32)  # filled batch by batch, denormalised
     with bf16_weights(precision, model.prior):
         for i in range(0, len(z), batch_size):
             stream = (torch.from_numpy(np.ascontiguousarray(timing[i: i + batch_size], np.float32)).to(z.device)
@@ -173,8 +180,8 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
                 x = gaussian_smooth(x, smoothing)
             if cutoff > 0:
                 x = lowpass(x, cutoff)
-            out.append(x.cpu().numpy())
-    return np.concatenate(out) * std + mean
+            out[i: i + batch_size] = x.cpu().numpy() * std + mean
+    return out
 
 
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
@@ -191,7 +198,7 @@ def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray],
     z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress,
                        residual_weights, precision)
     timing = conditions[-1] if gesture.config.hears_timing else None
-    return decode_latents(gesture, z, gesture.config.vae.frames, batch_size, timing, precision)
+    return decode_latents(gesture, z, gesture.config.vae.frames, min(batch_size, DECODE_BATCH), timing, precision)
 
 
 def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64,
@@ -199,8 +206,8 @@ def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int
     """Ground-truth raw features ``[W, T, D]`` -> their reconstruction through the motion prior
     (encoder mean, then decoder), raw features ``[W, T, D]``; ``timing``: the windows' timing stream,
     for a decoder that reads one."""
-    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1], batch_size, timing,
-                          generation=False)
+    return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1],
+                          min(batch_size, DECODE_BATCH), timing, generation=False)
 
 
 def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,
