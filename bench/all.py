@@ -75,7 +75,7 @@ def main() -> None:
         md += ["## Whole process (`emogesture generate`, fresh process, npz only; precision auto)", ""]
         lengths = [10.0, 20.0, 40.0] if args.quick else [10.0, 60.0, 600.0]
         for preset in presets:
-            r = whole.run(preset, lengths, "auto", args.device, repeats=2 if preset == "tiny" else 1)
+            r = whole.run(preset, lengths, "auto", args.device, repeats=5 if preset == "tiny" else 1)
             if preset == "tiny":  # the paper preset's long clips take minutes each; its start-up hides nothing
                 r["in_process"] = whole.in_process(preset, tuple(lengths[-2:]), "auto", args.device)
             result["whole"].append(r)
