@@ -237,3 +237,29 @@ def test_the_bundle_and_the_experiment_scripts_generate_with_the_tiny_presets_se
         assert value(shipped, key) == value(tiny, key), key
         if key in scripted:
             assert float(scripted[key]) == value(tiny, key), key
+
+
+def test_speech_encoder_batches_are_bounded_on_a_cpu_and_change_nothing(monkeypatch):
+    """On a CPU the speech encoders take as many windows per batch as keep their widest activation
+    within ENCODER_BATCH_NUMBERS (the paper encoder: 3 windows; larger batches left the caches); the
+    latents depend on the batch only by float32 rounding (matrix products blocked differently; the
+    paper encoder in bf16 gave bit-identical latents for batches of 3 and 32)."""
+    import numpy as np
+
+    from emogesture.models.vit import ViTConfig
+    from emogesture.pipeline import speech as speech_module
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+
+    encoder = SpeechLatentEncoder.from_run(bundled_model_file("speech"))
+    assert encoder.batch_size == 32  # the tiny encoder: 130 tokens x 256
+    paper = ViTConfig.preset("paper")
+    assert speech_module.ENCODER_BATCH_NUMBERS // ((paper.num_prefix + paper.num_patches) * 3072) == 3
+    windows = np.random.default_rng(0).standard_normal((5, 1024, 128)).astype(np.float32)
+    whole = encoder.encode_windows(windows, batch_size=32)
+    monkeypatch.setattr(speech_module, "ENCODER_BATCH_NUMBERS", 2 * 130 * 256)
+    assert encoder.batch_size == 2
+    sizes: list[int] = []
+    batched = encoder.encode_windows(windows, progress=sizes.append)
+    assert sizes == [2, 2, 1]
+    for part in ("content", "emotion", "style"):
+        np.testing.assert_allclose(getattr(batched, part), getattr(whole, part), rtol=0, atol=1e-5)

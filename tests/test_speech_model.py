@@ -91,6 +91,13 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
     # as close to float32 as torch's own bf16 kernel, and not the same computation
     assert (blocked - exact).norm() / exact.norm() < 2 * max((fused - exact).norm() / exact.norm(), 1e-3)
     assert not torch.equal(blocked, fused)
+    with torch.inference_mode():
+        # strided views of one qkv projection, as the encoders pass them, and other leading shapes
+        qkv = torch.randn(2, n, 3, 3, 16, generator=g).bfloat16().permute(2, 0, 3, 1, 4)
+        strided = attention(qkv[0], qkv[1], qkv[2])
+        assert torch.equal(strided, attention(*(x.contiguous() for x in qkv)))
+        assert strided.transpose(1, 2).is_contiguous()  # the output projection reads it without a copy
+        assert torch.equal(attention(qkv[0][0], qkv[1][0], qkv[2][0]), strided[0])
     # float32, short sequences and anything that needs gradients go to torch's kernel unchanged
     assert torch.equal(attention(q, k, v), exact)
     with torch.inference_mode():

@@ -21,8 +21,8 @@ from torch import nn
 from emogesture.errors import ConfigError
 
 LN_EPS = 1e-6
-#: :func:`attention`'s blocked path takes this many queries of this many (sample, head) pairs at a time
-#: (their scores, 12 x 128 x 1212 in bf16, stay within a core's cache), from this many tokens on.
+#: :func:`attention`'s blocked path takes this many queries of this many heads of one sample at a time
+#: (their scores, 12 x 128 x 1214 in bf16, stay within a core's cache), from this many tokens on.
 ATTENTION_QUERY_BLOCK = 128
 ATTENTION_HEAD_BLOCK = 12
 BLOCKED_ATTENTION_MIN_TOKENS = 512
@@ -44,17 +44,22 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
     if not blocked:
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape
-    q = (q * e ** -0.5).reshape(-1, n, e)
-    kt = k.reshape(-1, k.shape[-2], e).transpose(1, 2)
-    v = v.reshape(-1, v.shape[-2], e)
-    out = torch.empty_like(q)
-    for h in range(0, len(q), ATTENTION_HEAD_BLOCK):
-        heads = slice(h, h + ATTENTION_HEAD_BLOCK)
-        for i in range(0, n, ATTENTION_QUERY_BLOCK):
-            queries = slice(i, i + ATTENTION_QUERY_BLOCK)
-            scores = torch.bmm(q[heads, queries], kt[heads])
-            out[heads, queries] = torch.bmm(torch.softmax(scores, -1), v[heads])
-    return out.reshape(*batch, n, e)
+    q, k, v = (x.reshape(-1, *x.shape[-3:]) if x.dim() != 4 else x for x in (q, k, v))
+    b, h = q.shape[:2]
+    # one sample at a time: its keys and values are made contiguous once (a strided operand would be
+    # copied by every product), and the output is written in [B, N, H, E] order, so the caller's
+    # transpose(1, 2).reshape(B, N, H·E) before the output projection is a view, not a copy
+    out = q.new_empty(b, n, h, e).transpose(1, 2)
+    scale = e ** -0.5
+    for s in range(b):
+        kt, vs = k[s].transpose(-1, -2).contiguous(), v[s].contiguous()
+        for hb in range(0, h, ATTENTION_HEAD_BLOCK):
+            heads = slice(hb, hb + ATTENTION_HEAD_BLOCK)
+            for i in range(0, n, ATTENTION_QUERY_BLOCK):
+                queries = slice(i, i + ATTENTION_QUERY_BLOCK)
+                scores = torch.bmm((q[s, heads, queries] * scale).contiguous(), kt[heads])
+                out[s, heads, queries] = torch.bmm(torch.softmax(scores, -1), vs[heads])
+    return out.reshape(*batch, n, e)  # a view: same shape
 
 
 @dataclass

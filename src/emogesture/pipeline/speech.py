@@ -42,6 +42,13 @@ class EncodedWindows:
         return AudioLatents(*(torch.from_numpy(x) for x in (self.content, self.emotion, self.style)))
 
 
+#: On a CPU the speech encoders take as many windows per batch as keep their widest activation (tokens ×
+#: MLP width × windows) within this many numbers: the paper encoder (1214 tokens × 3072) takes 3. Larger
+#: batches leave the caches: one paper encoder in bf16 took 0.79–0.83 s per window in batches of 2 or 3,
+#: 0.82–0.91 in batches of 4 and 0.92–1.20 in batches of 9 (2 cores, interleaved). GPUs take 32.
+ENCODER_BATCH_NUMBERS = 12_000_000
+
+
 class SpeechLatentEncoder:
     """A frozen speech model in eval mode: deterministic, batched, no gradients; ``precision`` ``fp32``,
     ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`)."""
@@ -77,8 +84,17 @@ class SpeechLatentEncoder:
     def speakers(self) -> list[int]:
         return list(self.loaded.extra["speakers"])
 
+    @property
+    def batch_size(self) -> int:
+        """Windows per batch of :meth:`encode_windows` by default (see :data:`ENCODER_BATCH_NUMBERS`)."""
+        if torch.device(self.device).type != "cpu":
+            return 32
+        enc = self.loaded.config.encoder
+        per_window = (enc.num_prefix + enc.num_patches) * int(enc.width * enc.mlp_ratio)
+        return max(1, min(32, ENCODER_BATCH_NUMBERS // per_window))
+
     @torch.inference_mode()
-    def encode_windows(self, windows: np.ndarray, batch_size: int = 32, renormalise: tuple[float, float] | None = None,
+    def encode_windows(self, windows: np.ndarray, batch_size: int | None = None, renormalise: tuple[float, float] | None = None,
                        progress: Callable[[int], None] | None = None,
                        parts: tuple[str, ...] = LATENT_PARTS) -> EncodedWindows:
         """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
@@ -86,7 +102,9 @@ class SpeechLatentEncoder:
         ``renormalise=(mean, std)``: the windows were normalised with these statistics (another cache's);
         they are mapped to the model's own statistics first. ``parts``: the latents wanted; the encoders
         of the others are skipped and their arrays are ``[W, 0]`` (see ``SpeechDisentangler.encode``).
+        ``batch_size``: windows per batch (default :attr:`batch_size`).
         """
+        batch_size = batch_size or self.batch_size
         stores: list[list[np.ndarray]] = [[] for _ in range(5)]
         with bf16_weights(self.precision, self.model):
             for i in range(0, len(windows), batch_size):
@@ -122,7 +140,7 @@ class SpeechLatentEncoder:
         enc.timing = timing
         return enc, starts
 
-    def encode_split(self, cache: WindowsCache, split: str, batch_size: int = 32) -> EncodedWindows:
+    def encode_split(self, cache: WindowsCache, split: str, batch_size: int | None = None) -> EncodedWindows:
         """Latents of every window of a prepared split, cached in the windows cache's ``latents/`` folder
         (never next to the model: the bundled model lives inside the installed package).
 
