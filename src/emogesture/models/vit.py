@@ -44,7 +44,7 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
     if not blocked:
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape
-    q, k, v = (x.reshape(-1, *x.shape[-3:]) if x.dim() != 4 else x for x in (q, k, v))
+    q, k, v = (x.reshape(-1, *x.shape[-3:]) for x in (q, k, v))  # [B, H, N, E]; a view when 4-D already
     b, h = q.shape[:2]
     # one sample at a time: its keys and values are made contiguous once (a strided operand would be
     # copied by every product), and the output is written in [B, N, H, E] order, so the caller's

@@ -94,8 +94,8 @@ class SpeechLatentEncoder:
         return max(1, min(32, ENCODER_BATCH_NUMBERS // per_window))
 
     @torch.inference_mode()
-    def encode_windows(self, windows: np.ndarray, batch_size: int | None = None, renormalise: tuple[float, float] | None = None,
-                       progress: Callable[[int], None] | None = None,
+    def encode_windows(self, windows: np.ndarray, batch_size: int | None = None,
+                       renormalise: tuple[float, float] | None = None, progress: Callable[[int], None] | None = None,
                        parts: tuple[str, ...] = LATENT_PARTS) -> EncodedWindows:
         """Normalised fbank windows ``[W, 1024, n_mels]`` -> :class:`EncodedWindows`.
 
