@@ -14,7 +14,7 @@ from emogesture.models.pretrained import (
 )
 from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
-from emogesture.models.vit import BLOCKED_ATTENTION_MIN_TOKENS, AudioViT, ViTConfig, attention
+from emogesture.models.vit import BLOCKED_ATTENTION_MIN_TOKENS, AudioViT, Mlp, ViTConfig, attention
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -106,6 +106,23 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
     qg = q.bfloat16().requires_grad_()
     attention(qg, k.bfloat16(), v.bfloat16()).float().sum().backward()
     assert qg.grad is not None and qg.grad.abs().sum() > 0
+
+
+def test_mlp_gelu_in_place_without_autograd_gives_the_same_numbers():
+    torch.manual_seed(0)
+    mlp = Mlp(16, 64)
+    x = torch.randn(2, 5, 16)
+    reference = mlp.fc2(F.gelu(mlp.fc1(x)))
+    with torch.inference_mode():
+        assert torch.equal(mlp(x), reference)
+    with torch.no_grad():
+        assert torch.equal(mlp(x), reference)
+        with torch.autocast("cpu", dtype=torch.bfloat16):  # bf16 hidden activations, as the encoders run
+            assert torch.equal(mlp(x), mlp.fc2(F.gelu(mlp.fc1(x))))
+    out = mlp(x)  # with autograd: the out-of-place GELU, and gradients reach fc1
+    assert torch.equal(out, reference)
+    out.sum().backward()
+    assert mlp.fc1.weight.grad is not None and mlp.fc1.weight.grad.abs().sum() > 0
 
 
 def test_tiny_patches_are_whole_spectrum_slices():
