@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -237,6 +238,18 @@ def test_the_bundle_and_the_experiment_scripts_generate_with_the_tiny_presets_se
         assert value(shipped, key) == value(tiny, key), key
         if key in scripted:
             assert float(scripted[key]) == value(tiny, key), key
+
+
+def test_bundle_help_lists_exactly_the_generation_settings():
+    """The CLI's parser does not import the models (a command loads only what it uses), so ``bundle --set``'s
+    help names the settings by hand; this keeps it equal to GENERATION_SETTINGS."""
+    from emogesture.cli.main import build_parser
+    from emogesture.models.gesture import GENERATION_SETTINGS
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    action = next(a for a in sub.choices["bundle"]._actions if a.dest == "generation")
+    listed = action.help.split(":", 1)[1].replace(" ", "").split(",")
+    assert listed == list(GENERATION_SETTINGS)
 
 
 def test_speech_encoder_batches_are_bounded_on_a_cpu_and_change_nothing(monkeypatch):
