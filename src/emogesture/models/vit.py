@@ -193,7 +193,7 @@ class Mlp(nn.Module):
         paper encoder's hidden activation is 3 × 1214 × 3072 numbers per batch, and a fresh tensor for
         it cost 12 % of the MLP's time on a 2-core CPU in bf16 (the same numbers either way)."""
         h = self.fc1(x)
-        if h.requires_grad and torch.is_grad_enabled():
+        if h.requires_grad:  # never inside no_grad / inference_mode
             h = self.act(h)
         else:
             h = torch.ops.aten.gelu_(h, approximate=self.act.approximate)

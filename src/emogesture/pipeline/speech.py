@@ -45,8 +45,10 @@ class EncodedWindows:
 #: On a CPU the speech encoders take as many windows per batch as keep their widest activation (tokens ×
 #: MLP width × windows) within this many numbers: the paper encoder (1214 tokens × 3072) takes 3. Larger
 #: batches leave the caches: one paper encoder in bf16 took 0.79–0.83 s per window in batches of 2 or 3,
-#: 0.82–0.91 in batches of 4 and 0.92–1.20 in batches of 9 (2 cores, interleaved). GPUs take 32.
+#: 0.82–0.91 in batches of 4 and 0.92–1.20 in batches of 9 (2 cores, interleaved). GPUs take
+#: :data:`MAX_ENCODER_BATCH`, the most any device takes.
 ENCODER_BATCH_NUMBERS = 12_000_000
+MAX_ENCODER_BATCH = 32
 
 
 class SpeechLatentEncoder:
@@ -88,10 +90,10 @@ class SpeechLatentEncoder:
     def batch_size(self) -> int:
         """Windows per batch of :meth:`encode_windows` by default (see :data:`ENCODER_BATCH_NUMBERS`)."""
         if torch.device(self.device).type != "cpu":
-            return 32
+            return MAX_ENCODER_BATCH
         enc = self.loaded.config.encoder
         per_window = (enc.num_prefix + enc.num_patches) * int(enc.width * enc.mlp_ratio)
-        return max(1, min(32, ENCODER_BATCH_NUMBERS // per_window))
+        return max(1, min(MAX_ENCODER_BATCH, ENCODER_BATCH_NUMBERS // per_window))
 
     @torch.inference_mode()
     def encode_windows(self, windows: np.ndarray, batch_size: int | None = None,
