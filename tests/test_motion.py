@@ -352,6 +352,29 @@ def test_features_to_matrices_gives_the_same_joints_as_poses():
         assert torch.allclose(body(poses, trans), body.forward_matrices(rotations, trans2), atol=1e-5)
 
 
+def test_fk_from_features_matches_fk_from_all_rotations_with_gradients():
+    # forward_features skips the rest rotations of the joints the features leave out and the world
+    # rotations of leaves; it must give the same joints and gradients as the full 55-joint path
+    from emogesture.motion import SkeletonBody, features_to_matrices
+
+    body = SkeletonBody()
+    specs = (MotionFeatureSpec(), MotionFeatureSpec.all_joints(), MotionFeatureSpec(joints=(0, 3, 6, 9, 13, 16, 18)))
+    for spec in specs:
+        x = torch.randn(2, 7, spec.dim, generator=torch.Generator().manual_seed(5))
+        a, b = x.clone().requires_grad_(True), x.clone().requires_grad_(True)
+        joints = body.forward_features(a, spec)
+        reference = body.forward_matrices(*features_to_matrices(b, spec))
+        assert joints.shape == (2, 7, 55, 3)
+        assert torch.allclose(joints, reference, atol=1e-6)
+        weights = torch.randn(joints.shape, generator=torch.Generator().manual_seed(6))
+        (joints * weights).sum().backward()
+        (reference * weights).sum().backward()
+        assert torch.allclose(a.grad, b.grad, atol=1e-5, rtol=1e-5)
+        assert a.grad.abs().sum() > 0
+    with pytest.raises(ValueError, match="pelvis"):
+        body.forward_features(torch.zeros(3, 12), MotionFeatureSpec(joints=(3, 6)))
+
+
 def test_frame_rate_must_be_one_number(tmp_path):
     from emogesture.motion import load_smplx_npz
 

@@ -125,6 +125,32 @@ def test_mlp_gelu_in_place_without_autograd_gives_the_same_numbers():
     assert mlp.fc1.weight.grad is not None and mlp.fc1.weight.grad.abs().sum() > 0
 
 
+def test_dropout_masks_keep_the_rate_and_the_expectation():
+    from emogesture.models.vit import Dropout
+
+    drop = Dropout(0.1)
+    x = torch.ones(400, 999, requires_grad=True)
+    torch.manual_seed(3)
+    y = drop(x)
+    kept = y > 0
+    # kept with probability 1 - 6554/65536; 399 600 draws: the rate's standard error is 0.0005
+    assert abs(kept.float().mean().item() - (1 - 6554 / 65536)) < 0.002
+    assert torch.allclose(y[kept], torch.tensor(65536 / (65536 - 6554)))
+    assert abs(y.mean().item() - 1.0) < 0.003
+    # the 16-bit draws cover their whole range evenly (none of the words' sign bits is used)
+    rows = kept.reshape(-1, 3)  # three draws per 64-bit word
+    assert all(abs(rows[:, i].float().mean().item() - 0.9) < 0.004 for i in range(3))
+    y.sum().backward()
+    assert torch.equal(x.grad, y.detach())  # the gradient is the scaled mask
+    torch.manual_seed(3)
+    assert torch.equal(drop(x), y)  # draws from the default generator: seeded runs repeat
+    assert not torch.equal(drop(x), y)
+    drop.eval()
+    assert drop(x) is x
+    with pytest.raises(ValueError):
+        Dropout(1.5)
+
+
 def test_tiny_patches_are_whole_spectrum_slices():
     cfg = ViTConfig.preset("tiny")
     assert cfg.kernel == (128, 8) and cfg.strides == (128, 8) and cfg.grid == (1, 128)

@@ -7,6 +7,7 @@ rest skeleton; ``SMPLXBody`` wraps the user's own SMPL-X model files through the
 
 from __future__ import annotations
 
+from functools import lru_cache
 from os import PathLike
 from pathlib import Path
 
@@ -14,8 +15,8 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.motion.features import MotionFeatureSpec, features_to_matrices
-from emogesture.motion.rotations import axis_angle_to_matrix
+from emogesture.motion.features import MotionFeatureSpec
+from emogesture.motion.rotations import axis_angle_to_matrix, rot6d_to_matrix
 from emogesture.motion.skeleton import PARENTS, joint_depths, rest_joints, rest_offsets
 from emogesture.types import NUM_JOINTS
 
@@ -28,13 +29,55 @@ def _check_inputs(poses: torch.Tensor, trans: torch.Tensor | None, tail: tuple[i
         raise ValueError(f"trans must be {lead + (3,)}, got {tuple(trans.shape)}")
 
 
+@lru_cache(maxsize=16)
+def _kinematic_plan(rotated: tuple[int, ...]) -> tuple[tuple[int, ...], tuple[tuple, ...]]:
+    """How :class:`SkeletonBody` walks the tree when only the joints ``rotated`` have a local rotation
+    (the others stay at rest, e.g. the legs of upper-body features).
+
+    Returns ``(rows, depths)``. World rotations are formed only for joints with children (a leaf's is
+    never used): ``rows`` are the rows of the rotations passed in that are used, depth by depth (the
+    rotations of leaves are not even converted). ``depths`` has one entry per depth ``d ≥ 1``:
+    ``(joints, position_parents, rotation_parents, turned, turned_parents, kept_parents)``: the joints
+    at depth ``d`` (their positions in this order); their parents' slots among depth ``d - 1``'s
+    positions and world rotations; how many of ``rows`` this depth takes (joints with children and a
+    local rotation, whose world rotation is their parent's times it, the parents' slots in
+    ``turned_parents``); ``kept_parents``: the slots of the parents of joints with children and no
+    local rotation, which take their parent's world rotation as it is (after the turned ones).
+    The pelvis (depth 0) must be among ``rotated``.
+    """
+    depths = joint_depths()
+    levels = [[j for j in range(NUM_JOINTS) if depths[j] == d] for d in range(max(depths) + 1)]
+    has_children = set(PARENTS[1:])
+    row = {j: k for k, j in enumerate(rotated)}
+    rows = [row[0]]
+    entries: list[tuple] = []
+    rotation_slots = {0: 0}  # joint -> slot among the previous depth's world rotations
+    for d in range(1, len(levels)):
+        joints = levels[d]
+        position_slot = {j: k for k, j in enumerate(levels[d - 1])}
+        parents = [PARENTS[j] for j in joints]
+        turned = [j for j in joints if j in has_children and j in row]
+        kept = [j for j in joints if j in has_children and j not in row]
+        rows += [row[j] for j in turned]
+        entries.append((
+            tuple(joints), tuple(position_slot[p] for p in parents), tuple(rotation_slots[p] for p in parents),
+            len(turned), tuple(rotation_slots[PARENTS[j]] for j in turned),
+            tuple(rotation_slots[PARENTS[j]] for j in kept),
+        ))  # fmt: skip
+        rotation_slots = {j: k for k, j in enumerate(turned + kept)}
+    return tuple(rows), tuple(entries)
+
+
 class SkeletonBody(torch.nn.Module):
     """Differentiable forward kinematics on the mannequin-x rest skeleton (see ``skeleton.py``).
 
     The pelvis sits at its rest position plus ``trans`` and turns by joint 0's rotation (the
     SMPL-X global orientation); every other joint ``j`` is at
     ``pos[parent] + R_world[parent] @ offset[j]`` with ``R_world[j] = R_world[parent] @ R_local[j]``.
-    Joints are processed one tree depth at a time (11 steps), vectorised over the batch.
+    Joints are processed one tree depth at a time (11 steps), vectorised over the frames, in
+    joint-major layout (``[joints, frames, ...]``: every gather takes whole blocks of frames, and a
+    depth's bones are one matrix-vector product per joint). Leaves' world rotations are not formed,
+    nor products with the rest rotation of joints that upper-body features leave out.
     """
 
     def __init__(self, shape: np.ndarray | None = None) -> None:
@@ -43,17 +86,9 @@ class SkeletonBody(torch.nn.Module):
         self.register_buffer("offsets", torch.from_numpy(rest_offsets(shape)), persistent=False)
         self.register_buffer("rest", torch.from_numpy(rest_joints(shape)), persistent=False)
         depths = joint_depths()
-        levels = [[j for j in range(NUM_JOINTS) if depths[j] == d] for d in range(max(depths) + 1)]
-        self._num_levels = len(levels)
-        for d in range(1, len(levels)):
-            slot = {j: k for k, j in enumerate(levels[d - 1])}
-            self.register_buffer(f"_joints_{d}", torch.tensor(levels[d]), persistent=False)
-            parent_slots = torch.tensor([slot[PARENTS[j]] for j in levels[d]])
-            self.register_buffer(f"_parents_{d}", parent_slots, persistent=False)
-        order = [j for level in levels for j in level]
-        self._level_sizes = [len(level) for level in levels]
-        self.register_buffer("_order", torch.tensor(order), persistent=False)
+        order = sorted(range(NUM_JOINTS), key=lambda j: depths[j])  # stable: the plan's depth order
         self.register_buffer("_unsort", torch.tensor(np.argsort(order)), persistent=False)
+        self._plans: dict = {}
 
     def forward(self, poses: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
         """Axis-angle ``poses [B, T, 55, 3]`` (or ``[T, 55, 3]``, any leading dims) and optional
@@ -62,35 +97,70 @@ class SkeletonBody(torch.nn.Module):
         return self.forward_matrices(axis_angle_to_matrix(poses), trans)
 
     def forward_features(self, features: torch.Tensor, spec: MotionFeatureSpec | None = None) -> torch.Tensor:
-        """Raw motion features ``[..., T, D]`` -> joint positions ``[..., T, 55, 3]`` (differentiable)."""
-        return self.forward_matrices(*features_to_matrices(features, spec))
+        """Raw motion features ``[..., T, D]`` -> joint positions ``[..., T, 55, 3]`` (differentiable).
+
+        The same as ``forward_matrices(*features_to_matrices(features, spec))`` without forming the
+        rest rotations of the joints the features leave out, nor the rotations of leaves."""
+        spec = spec or MotionFeatureSpec()
+        if features.dim() < 2 or features.shape[-1] != spec.dim:
+            raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
+        if 0 not in spec.joints:
+            raise ValueError("forward kinematics from features needs the pelvis (joint 0) among spec.joints")
+        lead = features.shape[:-1]
+        n = len(spec.joints)
+        rows, plan = self._plan(spec.joints, features.device)
+        rot6d = features[..., : 6 * n].reshape(-1, n, 6).transpose(0, 1).index_select(0, rows)  # [R, N, 6]
+        trans = features[..., 6 * n :].reshape(-1, 3) if spec.include_translation else None
+        return self._kinematics(rot6d_to_matrix(rot6d), plan, trans).reshape(*lead, NUM_JOINTS, 3)
 
     def forward_matrices(self, rotations: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
         """Local rotation matrices ``[..., 55, 3, 3]`` and optional ``trans [..., 3]``
         -> joint positions ``[..., 55, 3]``."""
         _check_inputs(rotations, trans, (NUM_JOINTS, 3, 3))
         lead = rotations.shape[:-3]
-        local = rotations.reshape(-1, NUM_JOINTS, 3, 3)
+        rows, plan = self._plan(tuple(range(NUM_JOINTS)), rotations.device)
+        local = rotations.reshape(-1, NUM_JOINTS, 3, 3).transpose(0, 1).index_select(0, rows)  # [R, N, 3, 3]
+        trans = None if trans is None else trans.reshape(-1, 3)
+        return self._kinematics(local, plan, trans).reshape(*lead, NUM_JOINTS, 3)
+
+    def _plan(self, rotated: tuple[int, ...], device: torch.device) -> tuple[torch.Tensor, list[tuple]]:
+        """:func:`_kinematic_plan` with its indices as tensors on ``device`` (made once)."""
+        key = (rotated, device)
+        if key not in self._plans:
+            rows, entries = _kinematic_plan(rotated)
+            index = lambda x: torch.tensor(x, dtype=torch.long, device=device)  # noqa: E731
+            self._plans[key] = (index(rows), [
+                (index(joints), index(pos), index(rot), turned, index(turned_parents), index(kept))
+                for joints, pos, rot, turned, turned_parents, kept in entries
+            ])  # fmt: skip
+        return self._plans[key]
+
+    def _kinematics(self, local: torch.Tensor, plan: list[tuple], trans: torch.Tensor | None) -> torch.Tensor:
+        """The plan's local rotations ``[R, N, 3, 3]`` (its ``rows``, depth by depth, the pelvis first)
+        and ``trans [N, 3]`` or None -> joint positions ``[N, 55, 3]``."""
+        n = local.shape[1]
         offsets = self.offsets.to(dtype=local.dtype)
-        root = offsets[0].expand(local.shape[0], 3)
-        if trans is not None:
-            root = root + trans.reshape(-1, 3).to(local.dtype)
-        # one gather into depth order, then each depth is a contiguous part (the backward of indexing
-        # every depth out of ``local`` would write a full-size zero gradient per depth)
-        by_depth = local.index_select(1, self._order).split(self._level_sizes, dim=1)
-        world_rot = [by_depth[0]]
-        world_pos = [root[:, None]]
-        for d in range(1, self._num_levels):
-            joints = getattr(self, f"_joints_{d}")
-            parents = getattr(self, f"_parents_{d}")
-            # index_select, not indexing: its backward adds into the gradient (index_add_) where
-            # indexing's sorts the indices first (index_put_ with accumulate), 10 % of a training FK
-            parent_rot = world_rot[-1].index_select(1, parents)
-            bone = torch.einsum("nkij,kj->nki", parent_rot, offsets[joints])
-            world_pos.append(world_pos[-1].index_select(1, parents) + bone)
-            world_rot.append(parent_rot @ by_depth[d])
-        positions = torch.cat(world_pos, dim=1).index_select(1, self._unsort)
-        return positions.reshape(*lead, NUM_JOINTS, 3)
+        by_depth = local.split([1] + [entry[3] for entry in plan])
+        world_rot = by_depth[0]  # [1, N, 3, 3]: the pelvis
+        root = offsets[0].expand(n, 3) if trans is None else offsets[0] + trans.to(local.dtype)
+        world_pos = [root[None]]  # [1, N, 3]
+        for (joints, position_parents, rotation_parents, turned, turned_parents, kept_parents), turns in zip(
+            plan, by_depth[1:]
+        ):
+            k = len(joints)
+            parent_rot = world_rot.index_select(0, rotation_parents)  # [k, N, 3, 3]
+            bone = torch.bmm(parent_rot.reshape(k, n * 3, 3), offsets[joints][:, :, None]).view(k, n, 3)
+            world_pos.append(world_pos[-1].index_select(0, position_parents) + bone)
+            parts = []
+            if turned:
+                above = world_rot.index_select(0, turned_parents).reshape(-1, 3, 3)
+                parts.append(torch.bmm(above, turns.reshape(-1, 3, 3)).view(turned, n, 3, 3))
+            if len(kept_parents):
+                parts.append(world_rot.index_select(0, kept_parents))
+            if parts:
+                world_rot = parts[0] if len(parts) == 1 else torch.cat(parts)
+        positions = torch.cat(world_pos).index_select(0, self._unsort)  # [55, N, 3]
+        return positions.transpose(0, 1)
 
 
 def _resolve_model_file(model_path: str | PathLike[str], gender: str) -> Path:
