@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.motion.features import MotionFeatureSpec
+from emogesture.motion.features import MotionFeatureSpec, split_features
 from emogesture.motion.rotations import axis_angle_to_matrix, rot6d_to_matrix
 from emogesture.motion.skeleton import PARENTS, joint_depths, rest_joints, rest_offsets
 from emogesture.types import NUM_JOINTS
@@ -102,16 +102,13 @@ class SkeletonBody(torch.nn.Module):
         The same as ``forward_matrices(*features_to_matrices(features, spec))`` without forming the
         rest rotations of the joints the features leave out, nor the rotations of leaves."""
         spec = spec or MotionFeatureSpec()
-        if features.dim() < 2 or features.shape[-1] != spec.dim:
-            raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
+        rot6d, trans = split_features(features, spec)
         if 0 not in spec.joints:
             raise ValueError("forward kinematics from features needs the pelvis (joint 0) among spec.joints")
-        lead = features.shape[:-1]
-        n = len(spec.joints)
         rows, plan = self._plan(spec.joints, features.device)
-        rot6d = features[..., : 6 * n].reshape(-1, n, 6).transpose(0, 1).index_select(0, rows)  # [R, N, 6]
-        trans = features[..., 6 * n :].reshape(-1, 3) if spec.include_translation else None
-        return self._kinematics(rot6d_to_matrix(rot6d), plan, trans).reshape(*lead, NUM_JOINTS, 3)
+        rot6d = rot6d.reshape(-1, len(spec.joints), 6).transpose(0, 1).index_select(0, rows)  # [R, N, 6]
+        trans = None if trans is None else trans.reshape(-1, 3)
+        return self._kinematics(rot6d_to_matrix(rot6d), plan, trans).reshape(*features.shape[:-1], NUM_JOINTS, 3)
 
     def forward_matrices(self, rotations: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
         """Local rotation matrices ``[..., 55, 3, 3]`` and optional ``trans [..., 3]``

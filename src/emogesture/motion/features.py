@@ -71,6 +71,19 @@ def poses_to_features(
     return feats
 
 
+def split_features(
+    features: torch.Tensor, spec: MotionFeatureSpec | None = None
+) -> tuple[torch.Tensor, torch.Tensor | None]:
+    """Features ``[..., T, dim]`` -> ``(6D rotations [..., T, J, 6] of spec.joints, trans [..., T, 3] or None)``
+    (views); raises ValueError when the last dimension is not the spec's."""
+    spec = spec or MotionFeatureSpec()
+    if features.dim() < 2 or features.shape[-1] != spec.dim:
+        raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
+    n = len(spec.joints)
+    rot6d = features[..., : 6 * n].reshape(*features.shape[:-1], n, 6)
+    return rot6d, features[..., 6 * n :] if spec.include_translation else None
+
+
 def features_to_poses(
     features: torch.Tensor, spec: MotionFeatureSpec | None = None
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
@@ -80,17 +93,10 @@ def features_to_poses(
     includes translation.
     """
     spec = spec or MotionFeatureSpec()
-    if features.dim() < 2 or features.shape[-1] != spec.dim:
-        raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
-    lead = features.shape[:-1]
-    n = len(spec.joints)
-    rot6d = features[..., : 6 * n].reshape(*lead, n, 6)
-    selected = rot6d_to_axis_angle(rot6d)
-    poses = features.new_zeros(*lead, NUM_JOINTS, 3)
+    rot6d, trans = split_features(features, spec)
+    poses = features.new_zeros(*features.shape[:-1], NUM_JOINTS, 3)
     index = torch.tensor(spec.joints, device=features.device)
-    poses = poses.index_copy(-2, index, selected)
-    trans = features[..., 6 * n :] if spec.include_translation else None
-    return poses, trans
+    return poses.index_copy(-2, index, rot6d_to_axis_angle(rot6d)), trans
 
 
 def canonical_features(features: torch.Tensor, spec: MotionFeatureSpec | None = None) -> torch.Tensor:
@@ -157,17 +163,11 @@ def features_to_matrices(
     kinematics needs (``SkeletonBody.forward_matrices``), cheaper and with a smooth gradient.
     """
     spec = spec or MotionFeatureSpec()
-    if features.dim() < 2 or features.shape[-1] != spec.dim:
-        raise ValueError(f"features must be [..., T, {spec.dim}], got {tuple(features.shape)}")
-    lead = features.shape[:-1]
-    n = len(spec.joints)
-    selected = rot6d_to_matrix(features[..., : 6 * n].reshape(*lead, n, 6))
+    rot6d, trans = split_features(features, spec)
     eye = torch.eye(3, dtype=features.dtype, device=features.device)
-    rotations = eye.expand(*lead, NUM_JOINTS, 3, 3)
+    rotations = eye.expand(*features.shape[:-1], NUM_JOINTS, 3, 3)
     index = torch.tensor(spec.joints, device=features.device)
-    rotations = rotations.index_copy(-3, index, selected)
-    trans = features[..., 6 * n :] if spec.include_translation else None
-    return rotations, trans
+    return rotations.index_copy(-3, index, rot6d_to_matrix(rot6d)), trans
 
 
 @dataclass
