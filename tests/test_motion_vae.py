@@ -142,6 +142,27 @@ def test_positional_embedding_enters_every_attention_layer():
     assert (net(x[:, perm], pos) - y[:, perm]).abs().max() > 1e-3
 
 
+@pytest.mark.parametrize("memory_tokens", [1, 3])
+def test_inference_computes_the_trained_function(memory_tokens):
+    """Without autograd the positional term joins q and k after one qkv product ((x + pos) W = x W +
+    pos W), and one memory token is read without the attention (its softmax is exactly 1): the same
+    function as the training path, to float rounding."""
+    cfg = SkipTransformerConfig(width=32, layers=3, heads=4, ff_dim=64, dropout=0.0, cross_attention=True)
+    net = SkipTransformer(cfg).eval()
+    x = torch.randn(3, 7, 32, generator=_gen(9))
+    pos = torch.randn(1, 7, 32, generator=_gen(10))
+    memory = torch.randn(3, memory_tokens, 32, generator=_gen(11))
+    trained = net(x, pos, memory)  # autograd on: the training path
+    assert trained.requires_grad
+    with torch.no_grad():
+        inference = net(x, pos, memory)
+    torch.testing.assert_close(inference, trained.detach(), rtol=1e-5, atol=1e-5)
+    # the memory still matters, per sample
+    with torch.no_grad():
+        other = net(x, pos, memory.roll(1, 0))
+    assert (other - inference).abs().amax((1, 2)).min() > 1e-3
+
+
 def test_paper_parameter_count():
     n = sum(p.numel() for p in MotionVAE(MotionVAEConfig.preset("paper")).parameters())
     tiny = MotionVAE(MotionVAEConfig.preset("tiny"))

@@ -14,6 +14,7 @@ from emogesture.models.pretrained import (
 )
 from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
+import emogesture.models.vit as vit_module
 from emogesture.models.vit import BLOCKED_ATTENTION_MIN_TOKENS, AudioViT, Mlp, ViTConfig, attention
 
 
@@ -80,7 +81,11 @@ def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
     assert torch.allclose(vit.patch_embed(x)[0, 1 * 101 + 2], manual, atol=1e-4)
 
 
-def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_meant_to():
+@pytest.mark.parametrize("block_scores", [None, 2 * 64 * 300])
+def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_meant_to(block_scores, monkeypatch):
+    if block_scores:  # blocks smaller than one sample: one sample at a time, 2 of 3 heads, 64 queries
+        monkeypatch.setattr(vit_module, "ATTENTION_BLOCK_SCORES", block_scores)
+        monkeypatch.setattr(vit_module, "ATTENTION_QUERY_BLOCK", 64)
     g = torch.Generator().manual_seed(0)
     n = BLOCKED_ATTENTION_MIN_TOKENS + 37  # not a whole number of query blocks
     q, k, v = (torch.randn(2, 3, n, 16, generator=g) for _ in range(3))

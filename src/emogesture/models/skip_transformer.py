@@ -62,12 +62,17 @@ class PosSelfAttention(Attention):
         """``x [B, N, W]``, ``pos [1 or B, N, W]`` or None ``-> [B, N, W]``."""
         b, n, w = x.shape
         hd = w // self.heads
-        if pos is None:
-            qkv = self.qkv(x)
-            qk, v = qkv[..., : 2 * w], qkv[..., 2 * w :]
-        else:
+        if pos is not None and torch.is_grad_enabled():
             qk = F.linear(x + pos, self.qkv.weight[: 2 * w], self.qkv.bias[: 2 * w])
             v = F.linear(x, self.qkv.weight[2 * w :], self.qkv.bias[2 * w :])
+        else:
+            # without autograd, one product of x for q, k and v through the qkv Linear itself (so it runs as
+            # that layer runs, e.g. packed under runtime.bf16_weights), and pos's part of q and k (the same
+            # for every sample) added once: (x + pos) W = x W + pos W
+            qkv = self.qkv(x)
+            if pos is not None:
+                qkv[..., : 2 * w] += F.linear(pos, self.qkv.weight[: 2 * w]).to(qkv.dtype)
+            qk, v = qkv[..., : 2 * w], qkv[..., 2 * w :]
         qk = qk.reshape(b, n, 2, self.heads, hd).permute(2, 0, 3, 1, 4)
         v = v.reshape(b, n, self.heads, hd).transpose(1, 2)
         p = self.dropout if self.training else 0.0

@@ -22,22 +22,25 @@ from torch import nn
 from emogesture.errors import ConfigError
 
 LN_EPS = 1e-6
-#: :func:`attention`'s blocked path takes this many queries of this many heads of one sample at a time
-#: (their scores, 12 x 128 x 1214 in bf16, stay within a core's cache), from this many tokens on.
+#: :func:`attention`'s blocked path computes at most about this many scores at a time (12 heads x 128
+#: queries x 1214 keys in bf16: they stay within a core's cache), from this many tokens on.
+ATTENTION_BLOCK_SCORES = 12 * 128 * 1214
 ATTENTION_QUERY_BLOCK = 128
-ATTENTION_HEAD_BLOCK = 12
-BLOCKED_ATTENTION_MIN_TOKENS = 512
+BLOCKED_ATTENTION_MIN_TOKENS = 256
 
 
 def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: float = 0.0) -> torch.Tensor:
     """Scaled dot-product attention ``q [B, H, N, E]``, ``k, v [B, H, M, E] -> [B, H, N, E]``.
 
-    On a CPU in bf16 without gradients and for long sequences (the paper preset's 1214 tokens), blocks of
-    queries (:data:`ATTENTION_QUERY_BLOCK` of :data:`ATTENTION_HEAD_BLOCK` heads) go through two bf16
-    batched matrix products and a softmax: on a 2-core AVX-512-bf16 CPU, 9 windows of the paper encoder
-    run at about 180 GFLOP/s against 130 for torch's fused CPU kernel (bench/results/cpu.md). The
-    probabilities are rounded to bf16 before the second product, as in any bf16 product of them.
-    Everything else goes to :func:`torch.nn.functional.scaled_dot_product_attention`.
+    On a CPU in bf16 without gradients and for sequences of :data:`BLOCKED_ATTENTION_MIN_TOKENS` or more,
+    blocks of about :data:`ATTENTION_BLOCK_SCORES` scores go through two bf16 batched matrix products
+    and a softmax: several whole samples at a time where a sample's scores are fewer (the tiny motion
+    decoder's 4 heads x 300 x 300), else one sample's heads for :data:`ATTENTION_QUERY_BLOCK` queries
+    at a time (the paper encoders' 1214 tokens). On a 2-core AVX-512-bf16 CPU this ran at about 180
+    GFLOP/s against 130 for torch's fused CPU kernel in the paper encoders, and 9.5 against 11.6 ms
+    for the tiny decoder's 32 x 4 x 300 tokens (bench/results/cpu.md). The probabilities are rounded to
+    bf16 before the second product, as in any bf16 product of them. Everything else goes to
+    :func:`torch.nn.functional.scaled_dot_product_attention`.
     """
     blocked = (q.device.type == "cpu" and q.dtype == torch.bfloat16 and dropout_p == 0.0
                and not (torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad))
@@ -46,20 +49,28 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape
     q, k, v = (x.reshape(-1, *x.shape[-3:]) for x in (q, k, v))  # [B, H, N, E]; a view when 4-D already
-    b, h = q.shape[:2]
-    # one sample at a time: its keys and values are made contiguous once (a strided operand would be
-    # copied by every product), and the output is written in [B, N, H, E] order, so the caller's
+    b, h, m = q.shape[0], q.shape[1], k.shape[-2]
+    # keys and values are made contiguous once per block (a strided operand would be copied by every
+    # product), and the output is written in [B, N, H, E] order, so the caller's
     # transpose(1, 2).reshape(B, N, H·E) before the output projection is a view, not a copy
     out = q.new_empty(b, n, h, e).transpose(1, 2)
     scale = e ** -0.5
-    for s in range(b):
+    samples = ATTENTION_BLOCK_SCORES // (h * n * m)
+    if samples >= 1:  # whole samples
+        for i in range(0, b, samples):
+            block = slice(i, i + samples)
+            scores = torch.matmul((q[block] * scale).contiguous(), k[block].transpose(-1, -2).contiguous())
+            out[block] = torch.matmul(torch.softmax(scores, -1), v[block].contiguous())
+        return out.reshape(*batch, n, e)
+    heads = max(1, ATTENTION_BLOCK_SCORES // (ATTENTION_QUERY_BLOCK * m))
+    for s in range(b):  # one sample at a time, blocks of heads and queries
         kt, vs = k[s].transpose(-1, -2).contiguous(), v[s].contiguous()
-        for hb in range(0, h, ATTENTION_HEAD_BLOCK):
-            heads = slice(hb, hb + ATTENTION_HEAD_BLOCK)
+        for hb in range(0, h, heads):
+            hs = slice(hb, hb + heads)
             for i in range(0, n, ATTENTION_QUERY_BLOCK):
                 queries = slice(i, i + ATTENTION_QUERY_BLOCK)
-                scores = torch.bmm((q[s, heads, queries] * scale).contiguous(), kt[heads])
-                out[s, heads, queries] = torch.bmm(torch.softmax(scores, -1), vs[heads])
+                scores = torch.bmm((q[s, hs, queries] * scale).contiguous(), kt[hs])
+                out[s, hs, queries] = torch.bmm(torch.softmax(scores, -1), vs[hs])
     return out.reshape(*batch, n, e)  # a view: same shape
 
 
@@ -195,9 +206,15 @@ class CrossAttention(nn.Module):
         b, n, w = x.shape
         m = memory.shape[1]
         hd = w // self.heads
+        p = self.dropout if self.training else 0.0
+        if m == 1 and p == 0.0 and not torch.is_grad_enabled():
+            # one memory token: the softmax over one key is exactly 1, so every query reads that token's
+            # value (the same numbers, without the queries' product and the attention; the motion
+            # decoder's memory is one token)
+            v = F.linear(memory, self.kv.weight[w:], self.kv.bias[w:])  # [B, 1, W]
+            return self.proj_drop(self.proj(v)).expand(b, n, w)
         q = self.q(x).reshape(b, n, self.heads, hd).transpose(1, 2)
         kv = self.kv(memory).reshape(b, m, 2, self.heads, hd).permute(2, 0, 3, 1, 4)
-        p = self.dropout if self.training else 0.0
         y = attention(q, kv[0], kv[1], dropout_p=p)
         return self.proj_drop(self.proj(y.transpose(1, 2).reshape(b, n, w)))
 

@@ -143,11 +143,12 @@ def guide_features(
     n = len(spec.joints)
     lead = plain.shape[:-1]
     p, h = plain[..., : 6 * n].reshape(*lead, n, 2, 3), heard[..., : 6 * n].reshape(*lead, n, 2, 3)
+    d = h - p
     pp = (p * p).sum(-1)  # [..., n, 2]
-    shrink = (pp - (h * p).sum(-1)).clamp_min(1e-12)  # how much h falls short of p along p
+    shrink = (d * p).sum(-1).neg_().clamp_min_(1e-12)  # how much h falls short of p along p: (p − h) · p
     largest = ((1.0 - floor) * pp / shrink).amin(-1, keepdim=True)  # [..., n, 1]
-    wj = largest.clamp(1.0, w).unsqueeze(-1)  # [..., n, 1, 1]
-    rot = (p + wj * (h - p)).reshape(*lead, 6 * n)
+    wj = largest.clamp_(1.0, w).unsqueeze(-1)  # [..., n, 1, 1]
+    rot = torch.addcmul(p, wj, d).reshape(*lead, 6 * n)
     parts = [rot]
     if spec.include_translation:
         parts.append(plain[..., 6 * n :] + w * (heard[..., 6 * n :] - plain[..., 6 * n :]))

@@ -162,7 +162,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
     if guided:
         spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
-        m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
+    m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
     out = np.empty((len(z), frames, vae.feature_dim), np.float32)  # filled batch by batch, denormalised
     with bf16_weights(precision, model.prior):
         for i in range(0, len(z), batch_size):
@@ -173,14 +173,16 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
                     heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
                 else:
                     x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
+            # to raw units first: the filters below are unit-gain, so they commute with the affine map
             if guided:
-                x = (guide_features(deaf.float() * s + m, heard.float() * s + m, guidance, spec) - m) / s
-            x = x.float()
+                x = guide_features(torch.addcmul(m, deaf.float(), s), torch.addcmul(m, heard.float(), s), guidance, spec)
+            else:
+                x = torch.addcmul(m, x.float(), s)
             if smoothing > 0:
                 x = gaussian_smooth(x, smoothing)
             if cutoff > 0:
                 x = lowpass(x, cutoff)
-            out[i: i + batch_size] = x.cpu().numpy() * std + mean
+            out[i: i + batch_size] = x.cpu().numpy()
     return out
 
 
