@@ -102,7 +102,7 @@ def test_bf16_autocast_drifts_little_and_fp32_is_exact(runs):
 def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():
     from torch import nn
 
-    from emogesture.runtime import autocast, packs_bf16_weights
+    from emogesture.runtime import autocast, bf16_weights, packs_bf16_weights
 
     torch.manual_seed(0)
     net = nn.Sequential(nn.Linear(8, 16), nn.LayerNorm(16), nn.GELU(), nn.Linear(16, 4, bias=False))
@@ -113,14 +113,18 @@ def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():
             plain = net(x)
         with autocast("bf16", "cpu", net):
             assert net[0].weight.dtype == torch.bfloat16 and net[1].weight.dtype == torch.float32
+            assert "forward" not in vars(net[0])
+            cast_once = net(x)
+        with bf16_weights("bf16", net, pack=True), torch.autocast("cpu", dtype=torch.bfloat16):
             # where oneDNN runs bf16 natively, the Linears run with their weights packed once
             assert ("forward" in vars(net[0])) == ("forward" in vars(net[3])) == packs_bf16_weights("cpu")
-            cast_once = net(x)
+            packed = net(x)
         with autocast("fp32", "cpu", net):
             exact = net(x)
     # autocast's numbers: the same bf16 products (packed ones may sum in another order)
     assert plain.dtype == cast_once.dtype == torch.bfloat16 and exact.dtype == torch.float32
-    assert torch.allclose(plain.float(), cast_once.float(), rtol=2 ** -7, atol=1e-3)
+    assert torch.equal(plain, cast_once) and packed.dtype == torch.bfloat16
+    assert torch.allclose(plain.float(), packed.float(), rtol=2 ** -7, atol=1e-3)
     assert not any("forward" in vars(layer) for layer in net)  # the layers' own forward is back
     assert all(a is b for a, b in zip(weights, net.parameters()))  # the float32 parameters are back
     with pytest.raises(RuntimeError, match="inside"):

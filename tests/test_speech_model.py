@@ -130,6 +130,24 @@ def test_mlp_gelu_in_place_without_autograd_gives_the_same_numbers():
     assert mlp.fc1.weight.grad is not None and mlp.fc1.weight.grad.abs().sum() > 0
 
 
+@pytest.mark.parametrize("pack", [False, True])
+def test_mlp_with_bf16_weights_applies_the_gelu_inside_the_product(pack):
+    from emogesture.runtime import _onednn_bf16, bf16_weights, linear_gelu
+
+    torch.manual_seed(0)
+    mlp = Mlp(16, 64)
+    x = torch.randn(2, 5, 16)
+    with torch.inference_mode(), bf16_weights("bf16", mlp, pack=pack), torch.autocast("cpu", dtype=torch.bfloat16):
+        two_steps = mlp.fc2(F.gelu(mlp.fc1(x)))
+        fused = linear_gelu(mlp.fc1, x)
+        assert (fused is not None) == _onednn_bf16()  # a CPU with native bf16 (oneDNN)
+        out = mlp(x)
+    # the GELU of the float32 sums, rounded once: autocast's numbers to bf16 rounding
+    assert out.dtype == torch.bfloat16 and torch.allclose(out.float(), two_steps.float(), rtol=2 ** -6, atol=2e-3)
+    with torch.no_grad():  # float32 weights: no fused product
+        assert linear_gelu(mlp.fc1, x) is None
+
+
 def test_dropout_masks_keep_the_rate_and_the_expectation():
     from emogesture.models.vit import Dropout
 

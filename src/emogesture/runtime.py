@@ -70,9 +70,28 @@ def resolve_precision(precision: str | None, device: str | torch.device) -> str:
 
 
 def packs_bf16_weights(device: str | torch.device) -> bool:
-    """True where :func:`bf16_weights` also packs Linear weights for oneDNN (a CPU with native bf16)."""
-    return (torch.device(device).type == "cpu" and native_bf16("cpu") and torch.backends.mkldnn.is_available()
-            and torch.ops.mkldnn._is_mkldnn_bf16_supported())
+    """True where :func:`bf16_weights` can pack Linear weights for oneDNN (a CPU with native bf16)."""
+    return torch.device(device).type == "cpu" and _onednn_bf16()
+
+
+@lru_cache(maxsize=1)
+def _onednn_bf16() -> bool:
+    return native_bf16("cpu") and torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported()
+
+
+def linear_gelu(layer: nn.Linear, x: torch.Tensor, approximate: str = "none") -> torch.Tensor | None:
+    """``gelu(layer(x))`` as one oneDNN product with the GELU applied to its float32 sums before they are
+    rounded, where that can run: without autograd, on a CPU with native bf16, with the bf16 weights of
+    :func:`bf16_weights` (packed, if it packed them). None elsewhere: the caller runs the two steps.
+
+    Writing the product's bf16 output and then reading it again for the GELU took 4 % of a paper
+    encoder's time (bench/results/cpu.md, session 28)."""
+    weight = layer.__dict__.get("packed_weight")
+    if weight is None and layer.weight.dtype == torch.bfloat16:
+        weight = layer.weight
+    if weight is None or torch.is_grad_enabled() or x.device.type != "cpu" or not _onednn_bf16():
+        return None
+    return torch.ops.mkldnn._linear_pointwise(x.to(torch.bfloat16), weight, layer.bias, "gelu", [], approximate)
 
 
 def _packed_linear(layer: nn.Linear, packed: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
@@ -84,18 +103,20 @@ def _packed_linear(layer: nn.Linear, packed: torch.Tensor, x: torch.Tensor) -> t
 
 
 @contextmanager
-def bf16_weights(precision: str, *modules: nn.Module):
+def bf16_weights(precision: str, *modules: nn.Module, pack: bool = False):
     """Inside this context the Linear layers of ``modules`` hold bf16 copies of their weights and biases
     when ``precision == "bf16"`` (the float32 parameters are put back on exit); else it does nothing.
 
     Autocast would cast them to bf16 at every call, the same numbers: in a 50-step sampling loop those
     casts took 14 % of the time. Enter it once around a loop of :func:`autocast` batches.
 
-    On a CPU with native bf16 (:func:`packs_bf16_weights`) each ``nn.Linear`` also gets its weight packed
-    once into oneDNN's blocked layout and calls oneDNN's product with it, as inference libraries for
-    CPUs do: a plain product repacks the weight at every call. The paper preset's products ran 5–15 %
-    faster (the denoiser's 180-row ones the most; bench/results/cpu.md, session 28). The numbers are
-    autocast's to bf16 rounding (the same products, summed in another order).
+    ``pack``: on a CPU with native bf16 (:func:`packs_bf16_weights`) each ``nn.Linear`` also gets its
+    weight packed once into oneDNN's blocked layout and calls oneDNN's product with it, as inference
+    libraries for CPUs do: a plain product repacks the weight at every call. It pays where each layer
+    runs many times, as the denoiser does in a sampling loop: the paper denoiser's 180-row products ran
+    10–15 % faster, and packing its 87 M weights took 0.2 s. Packing the paper speech model took 0.7–1.4 s,
+    as much as it saved on a 60-s clip (bench/results/cpu.md, session 28). The numbers are autocast's to
+    bf16 rounding (the same products, summed in another order).
     """
     saved, patched = [], []
     try:
@@ -107,14 +128,16 @@ def bf16_weights(precision: str, *modules: nn.Module):
                         layer.weight = nn.Parameter(layer.weight.detach().to(torch.bfloat16), requires_grad=False)
                         if layer.bias is not None:
                             layer.bias = nn.Parameter(layer.bias.detach().to(torch.bfloat16), requires_grad=False)
-                        if type(layer) is nn.Linear and "forward" not in vars(layer) and packs_bf16_weights(layer.weight.device):
+                        if pack and type(layer) is nn.Linear and "forward" not in vars(layer) \
+                                and packs_bf16_weights(layer.weight.device):
                             packed = torch.ops.mkldnn._reorder_linear_weight(layer.weight.detach())
                             layer.forward = partial(_packed_linear, layer, packed)
+                            layer.packed_weight = packed  # for linear_gelu
                             patched.append(layer)
         yield
     finally:
         for layer in patched:
-            del layer.forward
+            del layer.forward, layer.packed_weight
         for layer, weight, bias in saved:
             layer.weight, layer.bias = weight, bias
 

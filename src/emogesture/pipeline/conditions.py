@@ -102,7 +102,7 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
     conditions = conditions[: cfg.denoiser.num_inputs]  # a stream only the decoder reads stays out
     out = []
-    with bf16_weights(precision, model.denoiser):
+    with bf16_weights(precision, model.denoiser, pack=True):
         for i in range(0, len(seeds), batch_size):
             conds = [torch.from_numpy(np.ascontiguousarray(c[i : i + batch_size], np.float32)).to(device)
                      for c in conditions]
