@@ -52,6 +52,9 @@ HOP_SECONDS = 7.0
 #: Draws denoised together: each DDIM step is one batched denoiser call, so larger batches spread its
 #: fixed cost; every draw has its own generator, so the result does not depend on the batch.
 SAMPLING_BATCH = 256
+#: Seams whose cross-fades are costed in one forward kinematics (:func:`choose_seam_candidates`): with 4
+#: candidates a window, 16 seams are 256 cross-fades of ~90 frames, about 150 MB of work space.
+SEAMS_PER_BATCH = 16
 #: Share of a window's frames with sound (:func:`emogesture.audio.window_activity`) from which its
 #: residual noise is added in full; below it the noise shrinks linearly to none for silence.
 FULL_RESIDUAL_ACTIVITY = 0.5
@@ -134,21 +137,22 @@ def seam_costs(previous: np.ndarray, incoming: np.ndarray, overlap: int,
 def _all_seam_costs(candidates: Sequence[np.ndarray], starts: list[int],
                     jumps: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
     """:func:`seam_costs` of every seam (window ``i - 1`` into ``i``, ``i >= 1``; zeros where windows do not
-    overlap). The cross-fades of one length go through ``jumps`` together: one forward kinematics for
-    the whole clip instead of one per seam (a 60-s clip's 8 seams took about a quarter of the time)."""
-    costs: list[np.ndarray | None] = [None] * len(candidates)
-    groups: dict[tuple[int, ...], list[tuple[int, np.ndarray]]] = {}
+    overlap). The cross-fades of up to :data:`SEAMS_PER_BATCH` seams of one overlap go through ``jumps``
+    together: one forward kinematics for a minute of audio instead of one per seam (a 60-s clip's 8
+    seams took about a quarter of the time), with memory bounded for long audio."""
+    costs: list[np.ndarray] = [np.zeros((len(candidates[i - 1]), len(candidates[i]))) for i in range(len(candidates))]
+    by_overlap: dict[int, list[int]] = {}
     for i in range(1, len(candidates)):
         overlap = starts[i - 1] + candidates[i].shape[1] - starts[i]
-        if overlap <= 0:
-            costs[i] = np.zeros((len(candidates[i - 1]), len(candidates[i])))
-        else:
-            frames = _crossfade_frames(candidates[i - 1], candidates[i], overlap)
-            groups.setdefault(frames.shape[1:], []).append((i, frames))
-    for members in groups.values():
-        worst = jumps(np.concatenate([frames for _, frames in members])).max(axis=1)
-        for (i, frames), part in zip(members, np.split(worst, np.cumsum([len(f) for _, f in members])[:-1])):
-            costs[i] = part.reshape(len(candidates[i - 1]), len(candidates[i]))
+        if overlap > 0:
+            by_overlap.setdefault(overlap, []).append(i)
+    for overlap, seams in by_overlap.items():
+        for first in range(0, len(seams), SEAMS_PER_BATCH):
+            chunk = seams[first: first + SEAMS_PER_BATCH]
+            frames = [_crossfade_frames(candidates[i - 1], candidates[i], overlap) for i in chunk]
+            worst = jumps(np.concatenate(frames)).max(axis=1)
+            for i, part in zip(chunk, np.split(worst, np.cumsum([len(f) for f in frames])[:-1])):
+                costs[i] = part.reshape(len(candidates[i - 1]), len(candidates[i]))
     return costs[1:]
 
 
