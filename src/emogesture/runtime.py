@@ -91,15 +91,21 @@ def linear_gelu(layer: nn.Linear, x: torch.Tensor, approximate: str = "none") ->
         weight = layer.weight
     if weight is None or torch.is_grad_enabled() or x.device.type != "cpu" or not _onednn_bf16():
         return None
-    return torch.ops.mkldnn._linear_pointwise(x.to(torch.bfloat16), weight, layer.bias, "gelu", [], approximate)
+    return _onednn_linear(x, weight, layer.bias, "gelu", approximate)
 
 
-def _packed_linear(layer: nn.Linear, packed: torch.Tensor, x: torch.Tensor) -> torch.Tensor:
-    """``layer(x)`` in bf16 through oneDNN with the weight packed once (``x [..., in] -> [..., out]``);
-    with autograd or off the CPU, the plain product of the layer's bf16 weight."""
+def _onednn_linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, post_op: str = "none",
+                   algorithm: str = "") -> torch.Tensor:
+    """oneDNN's bf16 product ``x [..., in] -> [..., out]`` with a post-op on its float32 sums."""
+    return torch.ops.mkldnn._linear_pointwise(x.to(torch.bfloat16), weight, bias, post_op, [], algorithm)
+
+
+def _packed_linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
+    """``layer(x)`` in bf16 through oneDNN with the weight :func:`bf16_weights` packed once (``x [..., in]
+    -> [..., out]``); with autograd or off the CPU, the plain product of the layer's bf16 weight."""
     if x.device.type != "cpu" or (torch.is_grad_enabled() and x.requires_grad):
         return F.linear(x, layer.weight, layer.bias)
-    return torch.ops.mkldnn._linear_pointwise(x.to(torch.bfloat16), packed, layer.bias, "none", [], "")
+    return _onednn_linear(x, layer.packed_weight, layer.bias)
 
 
 @contextmanager
@@ -130,9 +136,8 @@ def bf16_weights(precision: str, *modules: nn.Module, pack: bool = False):
                             layer.bias = nn.Parameter(layer.bias.detach().to(torch.bfloat16), requires_grad=False)
                         if pack and type(layer) is nn.Linear and "forward" not in vars(layer) \
                                 and packs_bf16_weights(layer.weight.device):
-                            packed = torch.ops.mkldnn._reorder_linear_weight(layer.weight.detach())
-                            layer.forward = partial(_packed_linear, layer, packed)
-                            layer.packed_weight = packed  # for linear_gelu
+                            layer.packed_weight = torch.ops.mkldnn._reorder_linear_weight(layer.weight.detach())
+                            layer.forward = partial(_packed_linear, layer)
                             patched.append(layer)
         yield
     finally:

@@ -235,7 +235,7 @@ class Mlp(nn.Module):
         where :func:`emogesture.runtime.linear_gelu` can (bf16 on a CPU), else in place on its output:
         the paper encoder's hidden activation is 3 × 1214 × 3072 numbers per batch, and a fresh tensor
         for it cost 12 % of the MLP's time on a 2-core CPU in bf16 (the same numbers either way)."""
-        h = None if torch.is_grad_enabled() else linear_gelu(self.fc1, x, self.act.approximate)
+        h = linear_gelu(self.fc1, x, self.act.approximate)  # None where it cannot run
         if h is None:
             h = self.fc1(x)
             if h.requires_grad:  # never inside no_grad / inference_mode

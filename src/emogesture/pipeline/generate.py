@@ -140,7 +140,7 @@ def _all_seam_costs(candidates: Sequence[np.ndarray], starts: list[int],
     overlap). The cross-fades of up to :data:`SEAMS_PER_BATCH` seams of one overlap go through ``jumps``
     together: one forward kinematics for a minute of audio instead of one per seam (a 60-s clip's 8
     seams took about a quarter of the time), with memory bounded for long audio."""
-    costs: list[np.ndarray] = [np.zeros((len(candidates[i - 1]), len(candidates[i]))) for i in range(len(candidates))]
+    costs = {i: np.zeros((len(candidates[i - 1]), len(candidates[i]))) for i in range(1, len(candidates))}
     by_overlap: dict[int, list[int]] = {}
     for i in range(1, len(candidates)):
         overlap = starts[i - 1] + candidates[i].shape[1] - starts[i]
@@ -152,8 +152,8 @@ def _all_seam_costs(candidates: Sequence[np.ndarray], starts: list[int],
             frames = [_crossfade_frames(candidates[i - 1], candidates[i], overlap) for i in chunk]
             worst = jumps(np.concatenate(frames)).max(axis=1)
             for i, part in zip(chunk, np.split(worst, np.cumsum([len(f) for f in frames])[:-1])):
-                costs[i] = part.reshape(len(candidates[i - 1]), len(candidates[i]))
-    return costs[1:]
+                costs[i] = part.reshape(costs[i].shape)
+    return list(costs.values())
 
 
 def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int],
