@@ -371,6 +371,10 @@ def test_fk_from_features_matches_fk_from_all_rotations_with_gradients():
         (reference * weights).sum().backward()
         assert torch.allclose(a.grad, b.grad, atol=1e-5, rtol=1e-5)
         assert a.grad.abs().sum() > 0
+    # and the gradients are the joints' own (finite differences, float64)
+    spec = specs[-1]
+    x = torch.randn(1, 2, spec.dim, generator=torch.Generator().manual_seed(7), dtype=torch.float64)
+    assert torch.autograd.gradcheck(lambda f: body.forward_features(f, spec), (x.requires_grad_(True),))
     with pytest.raises(ValueError, match="pelvis"):
         body.forward_features(torch.zeros(3, 12), MotionFeatureSpec(joints=(3, 6)))
 

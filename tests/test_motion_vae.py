@@ -11,6 +11,7 @@ import torch.nn.functional as F
 from emogesture.errors import ConfigError
 from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig, kl_loss
 from emogesture.models.skip_transformer import PosSelfAttention, SkipTransformer, SkipTransformerConfig
+from emogesture.models.vit import CrossAttention
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -161,6 +162,28 @@ def test_inference_computes_the_trained_function(memory_tokens):
     with torch.no_grad():
         other = net(x, pos, memory.roll(1, 0))
     assert (other - inference).abs().amax((1, 2)).min() > 1e-3
+
+
+def test_one_memory_token_trains_as_the_full_attention():
+    """With autograd too, one memory token is read without the attention: the output and every gradient
+    are those of the attention computed in full, the queries' (zero there to rounding) exactly zero, and
+    every input and parameter stays in the graph (``autograd.grad`` raises for one left out, as DDP would)."""
+    torch.manual_seed(0)
+    cross = CrossAttention(16, 4)
+    x = torch.randn(2, 5, 16, requires_grad=True)
+    memory = torch.randn(2, 1, 16, requires_grad=True)
+    inputs = [x, memory, *cross.parameters()]
+    out = cross(x, memory)
+    g = torch.randn_like(out)
+    got = torch.autograd.grad(out, inputs, g)
+    q = cross.q(x).reshape(2, 5, 4, 4).transpose(1, 2)
+    k, v = cross.kv(memory).reshape(2, 1, 2, 4, 4).permute(2, 0, 3, 1, 4)
+    full = cross.proj(F.scaled_dot_product_attention(q, k, v).transpose(1, 2).reshape(2, 5, 16))
+    want = torch.autograd.grad(full, inputs, g)
+    torch.testing.assert_close(out, full)
+    for a, b in zip(got, want):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-6)
+    assert got[2].abs().max() == 0 and got[1].abs().max() > 1e-3  # q's weight; the memory's gradient
 
 
 def test_paper_parameter_count():

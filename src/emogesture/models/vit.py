@@ -208,12 +208,18 @@ class CrossAttention(nn.Module):
         m = memory.shape[1]
         hd = w // self.heads
         p = self.dropout if self.training else 0.0
-        if m == 1 and p == 0.0 and not torch.is_grad_enabled():
+        if m == 1 and p == 0.0:
             # one memory token: the softmax over one key is exactly 1, so every query reads that token's
             # value (the same numbers, without the queries' product and the attention; the motion
             # decoder's memory is one token)
             v = F.linear(memory, self.kv.weight[w:], self.kv.bias[w:])  # [B, 1, W]
-            return self.proj_drop(self.proj(v)).expand(b, n, w)
+            out = self.proj_drop(self.proj(v))
+            if torch.is_grad_enabled():
+                # the queries' true gradient is zero: one query's stand-in keeps x and the q Linear in the
+                # graph with that gradient, so weight decay and DDP see their parameters as with the
+                # attention computed in full (where they get rounding-level gradients)
+                out = out + 0.0 * self.q(x[:, :1]).sum()
+            return out.expand(b, n, w)
         q = self.q(x).reshape(b, n, self.heads, hd).transpose(1, 2)
         kv = self.kv(memory).reshape(b, m, 2, self.heads, hd).permute(2, 0, 3, 1, 4)
         y = attention(q, kv[0], kv[1], dropout_p=p)

