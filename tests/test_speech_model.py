@@ -83,12 +83,17 @@ def test_vit_patch_grid_reads_the_fbank_as_a_frequency_by_time_image():
 
 @pytest.mark.parametrize("block_scores", [None, 2 * 64 * 300])
 def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_meant_to(block_scores, monkeypatch):
-    if block_scores:  # blocks smaller than one sample: one sample at a time, 2 of 3 heads, 64 queries
-        monkeypatch.setattr(vit_module, "ATTENTION_BLOCK_SCORES", block_scores)
-        monkeypatch.setattr(vit_module, "ATTENTION_QUERY_BLOCK", 64)
     g = torch.Generator().manual_seed(0)
     n = BLOCKED_ATTENTION_MIN_TOKENS + 37  # not a whole number of query blocks
     q, k, v = (torch.randn(2, 3, n, 16, generator=g) for _ in range(3))
+    with torch.inference_mode():  # a CPU with AMX tiles takes torch's fused kernel
+        monkeypatch.setattr(vit_module, "amx_bf16", lambda: True)
+        assert torch.equal(attention(*(x.bfloat16() for x in (q, k, v))),
+                           F.scaled_dot_product_attention(*(x.bfloat16() for x in (q, k, v))))
+    monkeypatch.setattr(vit_module, "amx_bf16", lambda: False)  # the blocked path, whatever this CPU
+    if block_scores:  # blocks smaller than one sample: one sample at a time, 2 of 3 heads, 64 queries
+        monkeypatch.setattr(vit_module, "ATTENTION_BLOCK_SCORES", block_scores)
+        monkeypatch.setattr(vit_module, "ATTENTION_QUERY_BLOCK", 64)
     exact = F.scaled_dot_product_attention(q, k, v)
     with torch.inference_mode():
         blocked = attention(q.bfloat16(), k.bfloat16(), v.bfloat16()).float()
