@@ -99,6 +99,32 @@ def test_bf16_autocast_drifts_little_and_fp32_is_exact(runs):
     assert np.array_equal(a.poses, again.poses)
 
 
+def test_a_bf16_pipeline_holds_its_weights_in_bf16_with_the_same_numbers(runs):
+    """``from_run`` under bf16 casts (and packs) the weights once, for good: generation gives the numbers
+    of the per-call casts, which a pipeline built around models it does not own still makes."""
+    from emogesture.checkpoints import load_model
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+    from emogesture.runtime import packs_bf16_weights
+
+    held = GesturePipeline.from_run(runs / "gesture", precision="bf16")
+    gesture = load_model(runs / "gesture", "gesture")
+    per_call = GesturePipeline(gesture, SpeechLatentEncoder(load_model(runs / "speech", "speech"), precision="bf16"),
+                               precision="bf16")
+
+    def linears(module):
+        return [m for m in module.modules() if isinstance(m, torch.nn.Linear)]
+
+    for module in (held.model.denoiser, held.model.prior, held.speech.model):
+        assert all(m.weight.dtype == torch.bfloat16 for m in linears(module))
+    assert all(("forward" in vars(m)) == packs_bf16_weights("cpu") for m in linears(held.model.denoiser))
+    wave = held.load_speech(runs / "other.wav")
+    a = held.generate(wave, seed=3, seam_candidates=2)[0]
+    b = per_call.generate(wave, seed=3, seam_candidates=2)[0]
+    assert np.array_equal(a.poses, b.poses) and np.array_equal(a.trans, b.trans)
+    # the pipeline that does not own its models puts their float32 weights back after each call
+    assert all(m.weight.dtype == torch.float32 for m in linears(per_call.model) + linears(per_call.speech.model))
+
+
 def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():
     from torch import nn
 

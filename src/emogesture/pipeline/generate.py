@@ -40,7 +40,7 @@ from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
-from emogesture.runtime import StageTimes, maybe_stage, resolve_precision
+from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
 
 WINDOW_SECONDS = 10.0
@@ -226,7 +226,10 @@ class GesturePipeline:
     def from_run(cls, run: str | PathLike[str] | None = None, speech_run: str | PathLike[str] | None = None,
                  device: str = "cpu", precision: str = "fp32") -> "GesturePipeline":
         """A gesture model's run folder (or model JSON; None = the bundled model) and its speech model
-        (default: the one the gesture model names, a path relative to the gesture model's folder or absolute)."""
+        (default: the one the gesture model names, a path relative to the gesture model's folder or absolute).
+
+        The models are loaded for this pipeline alone: under bf16 their Linear weights are held in bf16
+        from here on, the denoiser's packed (:func:`~emogesture.runtime.hold_bf16_weights`)."""
         gesture = load_model(run if run is not None else bundled_model_file("gesture"), "gesture", device=device)
         if speech_run is not None:
             speech = SpeechLatentEncoder.from_run(speech_run, device, precision)
@@ -235,7 +238,10 @@ class GesturePipeline:
         want = gesture.extra.get("speech_weights_sha256")
         if want and speech.loaded.meta["weights_sha256"] != want:
             raise InputFileError(speech.loaded.path, "is not the speech model this gesture model was trained with")
-        return cls(gesture, speech, device, precision)
+        pipe = cls(gesture, speech, device, precision)
+        hold_bf16_weights(pipe.precision, pipe.model.denoiser, pack=True)
+        hold_bf16_weights(pipe.precision, pipe.model.prior)
+        return pipe
 
     def load_speech(self, path: str | PathLike[str]) -> np.ndarray:
         """A speech file -> 16 kHz waveform ``[N]``; at least 1 s long. Silence is allowed (a calm

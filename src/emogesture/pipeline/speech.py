@@ -17,7 +17,7 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
-from emogesture.runtime import StageTimes, autocast, bf16_weights, maybe_stage, resolve_precision
+from emogesture.runtime import StageTimes, autocast, bf16_weights, hold_bf16_weights, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
 
@@ -68,7 +68,11 @@ class SpeechLatentEncoder:
 
     @classmethod
     def from_run(cls, path: str | PathLike[str], device: str = "cpu", precision: str = "fp32") -> "SpeechLatentEncoder":
-        return cls(load_model(path, "speech", device=device), device, precision)
+        """The speech model of a run folder or model JSON, loaded for this encoder alone: under bf16 its
+        Linear weights are held in bf16 from here on (:func:`~emogesture.runtime.hold_bf16_weights`)."""
+        encoder = cls(load_model(path, "speech", device=device), device, precision)
+        hold_bf16_weights(encoder.precision, encoder.model)
+        return encoder
 
     @classmethod
     def of_gesture_model(cls, gesture: LoadedModel, device: str = "cpu", precision: str = "fp32"
