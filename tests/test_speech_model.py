@@ -15,7 +15,8 @@ from emogesture.models.pretrained import (
 from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
 import emogesture.models.vit as vit_module
-from emogesture.models.vit import BLOCKED_ATTENTION_MIN_TOKENS, AudioViT, Mlp, ViTConfig, attention
+from emogesture.models.vit import (BLOCKED_ATTENTION_MIN_TOKENS, FLOAT32_TRAINING_ATTENTION, AudioViT, Mlp,
+                                  ViTConfig, attention)
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -116,6 +117,43 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
     qg = q.bfloat16().requires_grad_()
     attention(qg, k.bfloat16(), v.bfloat16()).float().sum().backward()
     assert qg.grad is not None and qg.grad.abs().sum() > 0
+
+
+def test_bf16_training_attends_in_float32_below_the_threshold_and_in_bf16_above():
+    g = torch.Generator().manual_seed(1)
+    tokens, width = FLOAT32_TRAINING_ATTENTION
+
+    def inputs(n, e):
+        return [torch.randn(2, 2, n, e, generator=g).bfloat16().requires_grad_() for _ in range(3)]
+
+    for n, e in ((tokens - 1, width), (tokens, width // 2)):  # short, or narrow heads: float32
+        q, k, v = inputs(n, e)
+        out = attention(q, k, v)
+        assert out.dtype == torch.bfloat16
+        assert torch.equal(out, F.scaled_dot_product_attention(q.float(), k.float(), v.float()).bfloat16())
+        assert not torch.equal(out, F.scaled_dot_product_attention(q, k, v))  # not the bf16 kernel
+        out.float().square().sum().backward()
+        assert all(x.grad is not None and x.grad.dtype == torch.bfloat16 and x.grad.abs().sum() > 0 for x in (q, k, v))
+    q, k, v = inputs(tokens, width)  # the paper encoders' shapes keep torch's bf16 kernel
+    assert torch.equal(attention(q, k, v), F.scaled_dot_product_attention(q, k, v))
+    with torch.inference_mode():  # and without autograd nothing changes
+        q, k, v = (x.detach() for x in inputs(tokens - 1, width))
+        assert torch.equal(attention(q, k, v), F.scaled_dot_product_attention(q, k, v))
+
+
+def test_patch_embedding_trains_in_float32_under_cpu_autocast():
+    torch.manual_seed(0)
+    vit = AudioViT(ViTConfig.preset("tiny"))
+    x = torch.randn(2, vit.config.input_frames, vit.config.input_bins)
+    exact = vit.patch_embed(x)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        trained = vit.patch_embed(x)
+        with torch.no_grad():
+            inferred = vit.patch_embed(x)
+    assert trained.dtype == torch.float32 and torch.equal(trained, exact)
+    assert inferred.dtype == torch.bfloat16  # without gradients the bf16 convolution runs
+    trained.square().sum().backward()
+    assert vit.patch_embed.proj.weight.grad.dtype == torch.float32 and vit.patch_embed.proj.weight.grad.abs().sum() > 0
 
 
 def test_mlp_gelu_in_place_without_autograd_gives_the_same_numbers():

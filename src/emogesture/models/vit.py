@@ -28,6 +28,13 @@ LN_EPS = 1e-6
 ATTENTION_BLOCK_SCORES = 12 * 128 * 1214
 ATTENTION_QUERY_BLOCK = 128
 BLOCKED_ATTENTION_MIN_TOKENS = 256
+#: Under autograd on a CPU, bf16 attention runs in float32 for fewer queries or narrower heads than
+#: these (tokens, head width): torch's bf16 backward is the slower one there. Forward and backward,
+#: bf16 against float32, on a 2-core Xeon with AMX: 130 tokens x 32 wide 104 / 31 ms (the tiny speech
+#: encoders: their bf16 training ran at 28 windows/s against 94 in float32, 90 with this), 300 x 16
+#: 41 / 18 (the tiny gesture model's), 300 x 32 42 / 27, 130 x 64 171 / 93; but 300 x 64 47 / 50,
+#: 600 x 64 134 / 132, 1214 x 64 169 / 240 (the paper encoders', whose training stays bf16).
+FLOAT32_TRAINING_ATTENTION = (256, 64)
 
 
 def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: float = 0.0) -> torch.Tensor:
@@ -43,11 +50,16 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
     bf16 before the second product, as in any bf16 product of them. On a CPU with AMX tiles
     (:func:`~emogesture.runtime.amx_bf16`) torch's fused kernel is the faster one (3 paper-encoder
     windows: 21 against 43 ms a layer; the tiny decoder's: 5.3 against 8 ms), and everything else
-    goes to :func:`torch.nn.functional.scaled_dot_product_attention` too.
+    goes to :func:`torch.nn.functional.scaled_dot_product_attention` too. Under autograd, CPU bf16
+    inputs of shapes below :data:`FLOAT32_TRAINING_ATTENTION` are attended in float32 (the result is
+    returned in bf16).
     """
-    blocked = (q.device.type == "cpu" and q.dtype == torch.bfloat16 and dropout_p == 0.0
-               and not (torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad))
-               and q.shape[-2] >= BLOCKED_ATTENTION_MIN_TOKENS and not amx_bf16())
+    cpu_bf16 = q.device.type == "cpu" and q.dtype == torch.bfloat16
+    if cpu_bf16 and torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad) \
+            and (q.shape[-2] < FLOAT32_TRAINING_ATTENTION[0] or q.shape[-1] < FLOAT32_TRAINING_ATTENTION[1]):
+        with torch.autocast("cpu", enabled=False):
+            return F.scaled_dot_product_attention(q.float(), k.float(), v.float(), dropout_p=dropout_p).to(q.dtype)
+    blocked = cpu_bf16 and dropout_p == 0.0 and q.shape[-2] >= BLOCKED_ATTENTION_MIN_TOKENS and not amx_bf16()
     if not blocked:
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape
@@ -313,8 +325,18 @@ class PatchEmbed(nn.Module):
         self.proj = nn.Conv2d(1, config.width, kernel_size=config.kernel, stride=config.strides)
 
     def forward(self, fbank: torch.Tensor) -> torch.Tensor:
-        """``fbank [B, 1024, 128] -> patches [B, 12 * 101, W]`` (frequency-major)."""
-        y = F.conv2d(fbank.unsqueeze(1), self.proj.weight.transpose(2, 3), self.proj.bias, stride=self.stride)
+        """``fbank [B, 1024, 128] -> patches [B, 12 * 101, W]`` (frequency-major).
+
+        Training under CPU bf16 autocast runs this convolution in float32: the bf16 weight gradient of
+        a convolution took a slow path on the CPU (585 ms of a 2.6-s tiny speech training step on a
+        Xeon with AMX), float32 none."""
+        x, weight, bias = fbank.unsqueeze(1), self.proj.weight.transpose(2, 3), self.proj.bias
+        if x.device.type == "cpu" and torch.is_autocast_enabled("cpu") and torch.is_grad_enabled() \
+                and weight.requires_grad:
+            with torch.autocast("cpu", enabled=False):
+                y = F.conv2d(x.float(), weight, bias, stride=self.stride)
+        else:
+            y = F.conv2d(x, weight, bias, stride=self.stride)
         b, w = y.shape[:2]  # y: [B, W, 101 (time), 12 (freq)]
         return y.permute(0, 3, 2, 1).reshape(b, -1, w)
 
