@@ -123,6 +123,8 @@ def test_a_bf16_pipeline_holds_its_weights_in_bf16_with_the_same_numbers(runs):
     assert np.array_equal(a.poses, b.poses) and np.array_equal(a.trans, b.trans)
     # the pipeline that does not own its models puts their float32 weights back after each call
     assert all(m.weight.dtype == torch.float32 for m in linears(per_call.model) + linears(per_call.speech.model))
+    with pytest.raises(ValueError, match="holds bf16 weights"):  # rounded copies are never saved as the model
+        save_model(runs / "held", "gesture", held.model, held.loaded.config)
 
 
 def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():

@@ -141,6 +141,10 @@ def save_model(
     weights take their place. A save killed before the JSON's rename leaves the old model; one killed
     after it leaves the new one, whose weights :func:`load_model` finds in the pending file.
     """
+    if any(p.dtype == torch.bfloat16 for p in model.parameters()):
+        # models train with float32 weights; bf16 ones are an inference pipeline's rounded copies
+        raise ValueError(f"{type(model).__name__} holds bf16 weights (runtime.hold_bf16_weights): save the "
+                         "float32 model it was loaded from")
     weights, meta_path = model_paths(path, name)
     weights.parent.mkdir(parents=True, exist_ok=True)
     check_model_output(path, overwrite, name)
