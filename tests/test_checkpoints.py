@@ -30,6 +30,41 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
 
 
+def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path):
+    """A model built to be loaded skips torch.nn.init's random fills: the global random stream is not
+    touched, every weight is the file's (a gesture model whose file lacks its optional calibration keeps
+    that buffer's constant zeros), and torch.nn.init is as it was afterwards."""
+    from torch import nn
+
+    from emogesture.models.gesture import GestureModel, GestureModelConfig
+
+    fills = {name: getattr(nn.init, name) for name in ("normal_", "trunc_normal_", "kaiming_uniform_")}
+    model = _model().eval()
+    save_model(tmp_path / "x", "extractor", model, model.config)
+    gesture = GestureModel(GestureModelConfig.preset("tiny"))
+    state = {k: v for k, v in gesture.state_dict().items() if k != "latent_residual_tril"}
+    torch.manual_seed(3)
+    expected = torch.rand(4)
+    torch.manual_seed(3)
+    loaded = load_model(tmp_path / "x", "extractor")
+    assert torch.equal(torch.rand(4), expected)  # nothing was drawn
+    assert all(torch.equal(a, b) for a, b in zip(model.state_dict().values(), loaded.model.state_dict().values()))
+    gesture.latent_residual_tril.fill_(1.0)
+    from safetensors.torch import save_file
+
+    save_model(tmp_path / "g", "gesture", gesture, gesture.config)
+    save_file({k: v.contiguous() for k, v in state.items()}, str(tmp_path / "g" / "model.safetensors"),
+              metadata={"format": "pt"})
+    meta = json.loads((tmp_path / "g" / "model.json").read_text())
+    meta["weights_sha256"] = _sha256(tmp_path / "g" / "model.safetensors")
+    meta["checksum_sha256"] = content_checksum(meta)
+    (tmp_path / "g" / "model.json").write_text(json.dumps(meta))
+    g = load_model(tmp_path / "g", "gesture").model
+    assert not g.latent_residual_tril.any()  # not in the file: its constant initial value
+    assert all(torch.equal(v, g.state_dict()[k]) for k, v in state.items())
+    assert all(getattr(nn.init, name) is fill for name, fill in fills.items())
+
+
 def test_errors_name_the_file(tmp_path):
     model = _model()
     with pytest.raises(InputFileError, match="model.json: model file not found"):
