@@ -8,7 +8,8 @@ import sys
 import pytest
 import torch
 
-from emogesture.checkpoints import _sha256, content_checksum, load_model, read_meta, save_model
+from emogesture.checkpoints import (_random_initialisation_skipped, _sha256, content_checksum, load_model, read_meta,
+                                   save_model)
 from emogesture.errors import InputFileError, OutputExistsError
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
 
@@ -30,24 +31,40 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
 
 
-def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path):
-    """A model built to be loaded skips torch.nn.init's random fills: the global random stream is not
-    touched, every weight is the file's (a gesture model whose file lacks its optional calibration keeps
-    that buffer's constant zeros), and torch.nn.init is as it was afterwards."""
+def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatch):
+    """A model built to be loaded skips torch.nn.init's random fills (in the loading thread only): the
+    global random stream is not touched, every weight is the file's (a gesture model whose file lacks
+    its optional calibration keeps that buffer's constant zeros), and torch.nn.init is as it was
+    afterwards."""
+    import threading
+
     from torch import nn
 
     from emogesture.models.gesture import GestureModel, GestureModelConfig
 
-    fills = {name: getattr(nn.init, name) for name in ("normal_", "trunc_normal_", "kaiming_uniform_")}
     model = _model().eval()
     save_model(tmp_path / "x", "extractor", model, model.config)
     gesture = GestureModel(GestureModelConfig.preset("tiny"))
     state = {k: v for k, v in gesture.state_dict().items() if k != "latent_residual_tril"}
+    calls = []
+    kaiming = nn.init.kaiming_uniform_
+    monkeypatch.setattr(nn.init, "kaiming_uniform_", lambda t, *a, **k: calls.append(1) or kaiming(t, *a, **k))
+    fills = {name: getattr(nn.init, name) for name in ("normal_", "trunc_normal_", "kaiming_uniform_")}
     torch.manual_seed(3)
     expected = torch.rand(4)
     torch.manual_seed(3)
     loaded = load_model(tmp_path / "x", "extractor")
     assert torch.equal(torch.rand(4), expected)  # nothing was drawn
+    assert not calls  # its Linears' fills were skipped
+    nn.Linear(2, 2)
+    assert calls  # and run again after the load
+    with _random_initialisation_skipped():  # only in the loading thread
+        here, there = torch.zeros(3), torch.zeros(3)
+        nn.init.uniform_(here, 1.0, 2.0)
+        other = threading.Thread(target=nn.init.uniform_, args=(there, 1.0, 2.0))
+        other.start()
+        other.join()
+    assert not here.any() and (there >= 1).all()
     assert all(torch.equal(a, b) for a, b in zip(model.state_dict().values(), loaded.model.state_dict().values()))
     gesture.latent_residual_tril.fill_(1.0)
     from safetensors.torch import save_file
@@ -63,6 +80,17 @@ def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path):
     assert not g.latent_residual_tril.any()  # not in the file: its constant initial value
     assert all(torch.equal(v, g.state_dict()[k]) for k, v in state.items())
     assert all(getattr(nn.init, name) is fill for name, fill in fills.items())
+
+
+def test_weights_replaced_while_they_load_are_refused(tmp_path, monkeypatch):
+    import emogesture.checkpoints as checkpoints
+
+    model = _model()
+    save_model(tmp_path / "x", "extractor", model, model.config)
+    stamps = iter(range(100))  # every look at the file sees another one (a save renamed over it)
+    monkeypatch.setattr(checkpoints, "_file_stamp", lambda path: next(stamps))
+    with pytest.raises(InputFileError, match=r"model.safetensors: changed while it was being loaded"):
+        load_model(tmp_path / "x", "extractor")
 
 
 def test_errors_name_the_file(tmp_path):

@@ -125,6 +125,8 @@ def test_a_bf16_pipeline_holds_its_weights_in_bf16_with_the_same_numbers(runs):
     assert all(m.weight.dtype == torch.float32 for m in linears(per_call.model) + linears(per_call.speech.model))
     with pytest.raises(ValueError, match="holds bf16 weights"):  # rounded copies are never saved as the model
         save_model(runs / "held", "gesture", held.model, held.loaded.config)
+    with pytest.raises(EmogestureError, match="holds bf16 weights"):  # nor run in float32
+        GesturePipeline(held.loaded, held.speech, precision="fp32").generate(wave, seed=3)
 
 
 def test_bf16_weights_cast_once_give_autocasts_numbers_and_are_put_back():

@@ -109,17 +109,23 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
         assert torch.equal(strided, attention(*(x.contiguous() for x in qkv)))
         assert strided.transpose(1, 2).is_contiguous()  # the output projection reads it without a copy
         assert torch.equal(attention(qkv[0][0], qkv[1][0], qkv[2][0]), strided[0])
-    # float32, short sequences and anything that needs gradients go to torch's kernel unchanged
+    # float32, short sequences and anything that needs gradients (at widths that stay bf16) go to
+    # torch's kernel unchanged
     assert torch.equal(attention(q, k, v), exact)
     with torch.inference_mode():
         short = [x[:, :, :100].bfloat16() for x in (q, k, v)]
         assert torch.equal(attention(*short), F.scaled_dot_product_attention(*short))
-    qg = q.bfloat16().requires_grad_()
-    attention(qg, k.bfloat16(), v.bfloat16()).float().sum().backward()
+    wide = [torch.randn(2, 3, n, 64, generator=g).bfloat16() for _ in range(3)]
+    qg = wide[0].requires_grad_()
+    out = attention(qg, wide[1], wide[2])
+    assert torch.equal(out, F.scaled_dot_product_attention(qg, wide[1], wide[2]))
+    out.float().sum().backward()
     assert qg.grad is not None and qg.grad.abs().sum() > 0
 
 
-def test_bf16_training_attends_in_float32_below_the_threshold_and_in_bf16_above():
+@pytest.mark.parametrize("amx", [False, True])
+def test_bf16_training_attends_in_float32_below_the_threshold_and_in_bf16_above(amx, monkeypatch):
+    monkeypatch.setattr(vit_module, "amx_bf16", lambda: amx)  # with or without AMX tiles, whatever this CPU
     g = torch.Generator().manual_seed(1)
     tokens, width = FLOAT32_TRAINING_ATTENTION
 
@@ -134,8 +140,11 @@ def test_bf16_training_attends_in_float32_below_the_threshold_and_in_bf16_above(
         assert not torch.equal(out, F.scaled_dot_product_attention(q, k, v))  # not the bf16 kernel
         out.float().square().sum().backward()
         assert all(x.grad is not None and x.grad.dtype == torch.bfloat16 and x.grad.abs().sum() > 0 for x in (q, k, v))
-    q, k, v = inputs(tokens, width)  # the paper encoders' shapes keep torch's bf16 kernel
-    assert torch.equal(attention(q, k, v), F.scaled_dot_product_attention(q, k, v))
+    q, k, v = inputs(tokens, width)  # the paper encoders' shapes keep torch's bf16 kernel (never the blocked path)
+    out = attention(q, k, v)
+    assert torch.equal(out, F.scaled_dot_product_attention(q, k, v))
+    out.float().square().sum().backward()
+    assert q.grad is not None and q.grad.abs().sum() > 0
     with torch.inference_mode():  # and without autograd nothing changes
         q, k, v = (x.detach() for x in inputs(tokens - 1, width))
         assert torch.equal(attention(q, k, v), F.scaled_dot_product_attention(q, k, v))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -268,6 +269,12 @@ _RANDOM_INITS = ("uniform_", "normal_", "trunc_normal_", "kaiming_uniform_", "ka
                  "xavier_uniform_", "xavier_normal_", "orthogonal_")
 
 
+_INIT_LOCK = threading.Lock()
+_SKIPPING = threading.local()  # .depth: loads under way in this thread
+_INSTALLED: dict[str, Callable] = {}  # the fills replaced while any thread loads, and their depth
+_LOADS = [0]
+
+
 @contextmanager
 def _random_initialisation_skipped():
     """Inside, ``torch.nn.init``'s random fills leave their tensors as they are, and the global random
@@ -276,20 +283,34 @@ def _random_initialisation_skipped():
     not draw random ones first — they took 2.7 s of the paper speech model's 4.5-s load, 0.9 of the
     gesture model's 1.1. The file then sets every parameter and persistent buffer (:func:`load_model`
     refuses one that lacks any but a model's ``optional_state_keys``, which are not filled at random);
-    the constant fills (``zeros_``, ``ones_``) still run."""
-    saved = {name: getattr(nn.init, name) for name in _RANDOM_INITS}
+    the constant fills (``zeros_``, ``ones_``) still run.
+
+    Only the loading thread skips: the fills are replaced by ones that skip in a thread inside this
+    context and fill as usual in any other, and put back when the last load (of any thread) ends."""
+    with _INIT_LOCK:
+        if _LOADS[0] == 0:
+            for name in _RANDOM_INITS:
+                _INSTALLED[name] = getattr(nn.init, name)
+                setattr(nn.init, name, _skipped_while_loading(_INSTALLED[name]))
+        _LOADS[0] += 1
+    _SKIPPING.depth = getattr(_SKIPPING, "depth", 0) + 1
     try:
         with torch.random.fork_rng(devices=[]):
-            for name in _RANDOM_INITS:
-                setattr(nn.init, name, _left_as_is)
             yield
     finally:
-        for name, fill in saved.items():
-            setattr(nn.init, name, fill)
+        _SKIPPING.depth -= 1
+        with _INIT_LOCK:
+            _LOADS[0] -= 1
+            if _LOADS[0] == 0:
+                for name, fill in _INSTALLED.items():
+                    setattr(nn.init, name, fill)
+                _INSTALLED.clear()
 
 
-def _left_as_is(tensor: torch.Tensor, *args: Any, **kwargs: Any) -> torch.Tensor:
-    return tensor
+def _skipped_while_loading(fill: Callable) -> Callable:
+    def fill_unless_loading(tensor: torch.Tensor, *args: Any, **kwargs: Any) -> torch.Tensor:
+        return tensor if getattr(_SKIPPING, "depth", 0) else fill(tensor, *args, **kwargs)
+    return fill_unless_loading
 
 
 def _load_weights(model: nn.Module, weights: Path, device: str) -> tuple[list[str], list[str]]:
@@ -302,6 +323,7 @@ def _load_weights(model: nn.Module, weights: Path, device: str) -> tuple[list[st
     missing: set[str] | None = None
     unexpected: list[str] = []
     try:
+        stamp = _file_stamp(weights)
         with safe_open(str(weights), framework="pt", device=device) as f:
             for key in f.keys():
                 parts.setdefault(key.split(".", 1)[0], []).append(key)
@@ -309,17 +331,26 @@ def _load_weights(model: nn.Module, weights: Path, device: str) -> tuple[list[st
             # the file is mapped into memory while open, and the pages read count as the process's
             # own: opened again for each part, only one part's pages are mapped at a time
             with safe_open(str(weights), framework="pt", device=device) as f:
+                if _file_stamp(weights) != stamp:
+                    raise InputFileError(weights, "changed while it was being loaded (saved again?); load it again")
                 part = {k: f.get_tensor(k) for k in keys}
             absent, extra = model.load_state_dict(part, strict=False)
             del part
             missing = set(absent) if missing is None else missing & set(absent)
             unexpected += extra
+    except InputFileError:
+        raise
     except (SafetensorError, OSError, ValueError) as e:
         raise InputFileError(weights, f"corrupt weights file ({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
     except RuntimeError as e:
         detail = next((ln.strip() for ln in str(e).splitlines() if "size mismatch" in ln), "shapes differ")
         raise InputFileError(weights, f"weights do not fit the stored config ({detail.rstrip('.')})") from None
     return sorted(missing or ()), unexpected
+
+
+def _file_stamp(path: Path) -> tuple[int, int, int]:
+    st = os.stat(path)
+    return st.st_ino, st.st_size, st.st_mtime_ns
 
 
 def trained_splits(loaded: LoadedModel) -> list[str]:

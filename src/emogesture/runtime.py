@@ -136,6 +136,8 @@ def bf16_weights(precision: str, *modules: nn.Module, pack: bool = False):
     try:
         if precision == "bf16":
             _bf16_linears(modules, pack, saved, patched)
+        else:
+            refuse_held_weights(*modules)
         yield
     finally:
         for layer in patched:
@@ -155,6 +157,15 @@ def hold_bf16_weights(precision: str, *modules: nn.Module, pack: bool = False) -
     trained: hold only models loaded for the pipeline's own use."""
     if precision == "bf16":
         _bf16_linears(modules, pack)
+
+
+def refuse_held_weights(*modules: nn.Module) -> None:
+    """A one-line error when ``modules`` hold bf16 weights (:func:`hold_bf16_weights`) but are to run in
+    float32, instead of torch's dtype mismatch from inside a product."""
+    if any(isinstance(layer, nn.Linear) and layer.weight.dtype == torch.bfloat16
+           for module in modules for layer in module.modules()):
+        raise EmogestureError("this model holds bf16 weights (loaded for a bf16 pipeline): run it with precision "
+                              "bf16, or load it again for float32")
 
 
 def _bf16_linears(modules: tuple[nn.Module, ...], pack: bool, saved: list | None = None,

@@ -29,7 +29,8 @@ ATTENTION_BLOCK_SCORES = 12 * 128 * 1214
 ATTENTION_QUERY_BLOCK = 128
 BLOCKED_ATTENTION_MIN_TOKENS = 256
 #: Under autograd on a CPU, bf16 attention runs in float32 for fewer queries or narrower heads than
-#: these (tokens, head width): torch's bf16 backward is the slower one there. Forward and backward,
+#: these (queries, head width): torch's bf16 backward is the slower one there (measured on
+#: self-attention; the paper decoder's cross-attention of few queries over many keys goes to float32 too). Forward and backward,
 #: bf16 against float32, on a 2-core Xeon with AMX: 130 tokens x 32 wide 104 / 31 ms (the tiny speech
 #: encoders: their bf16 training ran at 28 windows/s against 94 in float32, 90 with this), 300 x 16
 #: 41 / 18 (the tiny gesture model's), 300 x 32 42 / 27, 130 x 64 171 / 93; but 300 x 64 47 / 50,
@@ -52,14 +53,16 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
     windows: 21 against 43 ms a layer; the tiny decoder's: 5.3 against 8 ms), and everything else
     goes to :func:`torch.nn.functional.scaled_dot_product_attention` too. Under autograd, CPU bf16
     inputs of shapes below :data:`FLOAT32_TRAINING_ATTENTION` are attended in float32 (the result is
-    returned in bf16).
+    returned in bf16), larger ones by torch's bf16 kernel.
     """
     cpu_bf16 = q.device.type == "cpu" and q.dtype == torch.bfloat16
-    if cpu_bf16 and torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad) \
+    training = torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad)
+    if cpu_bf16 and training \
             and (q.shape[-2] < FLOAT32_TRAINING_ATTENTION[0] or q.shape[-1] < FLOAT32_TRAINING_ATTENTION[1]):
         with torch.autocast("cpu", enabled=False):
             return F.scaled_dot_product_attention(q.float(), k.float(), v.float(), dropout_p=dropout_p).to(q.dtype)
-    blocked = cpu_bf16 and dropout_p == 0.0 and q.shape[-2] >= BLOCKED_ATTENTION_MIN_TOKENS and not amx_bf16()
+    blocked = (cpu_bf16 and not training and dropout_p == 0.0 and q.shape[-2] >= BLOCKED_ATTENTION_MIN_TOKENS
+               and not amx_bf16())
     if not blocked:
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape

@@ -28,7 +28,7 @@ from emogesture.errors import EmogestureError
 from emogesture.models.motion_vae import gaussian_smooth, lowpass
 from emogesture.motion import MotionFeatureSpec, guide_features
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.runtime import autocast, bf16_weights
+from emogesture.runtime import autocast, bf16_weights, refuse_held_weights
 
 
 def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
@@ -135,6 +135,7 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
 def encode_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64) -> torch.Tensor:
     """Raw motion features ``[W, T, D]`` -> the prior's latents (encoder mean) ``[W, 256]``."""
     model = evaluating(gesture.model)
+    refuse_held_weights(model.prior)
     device = next(model.parameters()).device
     mean, std = _motion_statistics(gesture)
     out = []

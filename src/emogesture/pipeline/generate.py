@@ -228,8 +228,9 @@ class GesturePipeline:
         """A gesture model's run folder (or model JSON; None = the bundled model) and its speech model
         (default: the one the gesture model names, a path relative to the gesture model's folder or absolute).
 
-        The models are loaded for this pipeline alone: under bf16 their Linear weights are held in bf16
-        from here on, the denoiser's packed (:func:`~emogesture.runtime.hold_bf16_weights`)."""
+        The models are loaded for this pipeline alone: under bf16 the Linear weights of the speech model,
+        the denoiser and the motion prior are held in bf16 from here on, the denoiser's packed where
+        oneDNN can (:func:`~emogesture.runtime.hold_bf16_weights`)."""
         gesture = load_model(run if run is not None else bundled_model_file("gesture"), "gesture", device=device)
         if speech_run is not None:
             speech = SpeechLatentEncoder.from_run(speech_run, device, precision)
