@@ -267,12 +267,10 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
 #: ``torch.nn.init``'s random fills, skipped while a model is built only to be loaded.
 _RANDOM_INITS = ("uniform_", "normal_", "trunc_normal_", "kaiming_uniform_", "kaiming_normal_",
                  "xavier_uniform_", "xavier_normal_", "orthogonal_")
-
-
 _INIT_LOCK = threading.Lock()
 _SKIPPING = threading.local()  # .depth: loads under way in this thread
-_INSTALLED: dict[str, Callable] = {}  # the fills replaced while any thread loads, and their depth
-_LOADS = [0]
+_REPLACED: dict[str, Callable] = {}  # torch's own fills, while any thread loads
+_loads = 0  # loads under way in all threads
 
 
 @contextmanager
@@ -287,12 +285,13 @@ def _random_initialisation_skipped():
 
     Only the loading thread skips: the fills are replaced by ones that skip in a thread inside this
     context and fill as usual in any other, and put back when the last load (of any thread) ends."""
+    global _loads
     with _INIT_LOCK:
-        if _LOADS[0] == 0:
+        if _loads == 0:
             for name in _RANDOM_INITS:
-                _INSTALLED[name] = getattr(nn.init, name)
-                setattr(nn.init, name, _skipped_while_loading(_INSTALLED[name]))
-        _LOADS[0] += 1
+                _REPLACED[name] = getattr(nn.init, name)
+                setattr(nn.init, name, _skipped_while_loading(_REPLACED[name]))
+        _loads += 1
     _SKIPPING.depth = getattr(_SKIPPING, "depth", 0) + 1
     try:
         with torch.random.fork_rng(devices=[]):
@@ -300,11 +299,11 @@ def _random_initialisation_skipped():
     finally:
         _SKIPPING.depth -= 1
         with _INIT_LOCK:
-            _LOADS[0] -= 1
-            if _LOADS[0] == 0:
-                for name, fill in _INSTALLED.items():
+            _loads -= 1
+            if _loads == 0:
+                for name, fill in _REPLACED.items():
                     setattr(nn.init, name, fill)
-                _INSTALLED.clear()
+                _REPLACED.clear()
 
 
 def _skipped_while_loading(fill: Callable) -> Callable:

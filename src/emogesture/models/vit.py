@@ -29,12 +29,13 @@ ATTENTION_BLOCK_SCORES = 12 * 128 * 1214
 ATTENTION_QUERY_BLOCK = 128
 BLOCKED_ATTENTION_MIN_TOKENS = 256
 #: Under autograd on a CPU, bf16 attention runs in float32 for fewer queries or narrower heads than
-#: these (queries, head width): torch's bf16 backward is the slower one there (measured on
-#: self-attention; the paper decoder's cross-attention of few queries over many keys goes to float32 too). Forward and backward,
-#: bf16 against float32, on a 2-core Xeon with AMX: 130 tokens x 32 wide 104 / 31 ms (the tiny speech
-#: encoders: their bf16 training ran at 28 windows/s against 94 in float32, 90 with this), 300 x 16
-#: 41 / 18 (the tiny gesture model's), 300 x 32 42 / 27, 130 x 64 171 / 93; but 300 x 64 47 / 50,
-#: 600 x 64 134 / 132, 1214 x 64 169 / 240 (the paper encoders', whose training stays bf16).
+#: these (queries, head width): torch's bf16 backward is the slower one there. Measured on
+#: self-attention (the paper decoder's cross-attention of few queries over many keys goes to float32
+#: too), forward and backward, bf16 against float32, on a 2-core Xeon with AMX: 130 tokens x 32 wide
+#: 104 / 31 ms (the tiny speech encoders: their bf16 training ran at 28 windows/s against 94 in
+#: float32, 90 with this), 300 x 16 41 / 18 (the tiny gesture model's), 300 x 32 42 / 27, 130 x 64
+#: 171 / 93; but 300 x 64 47 / 50, 600 x 64 134 / 132, 1214 x 64 169 / 240 (the paper encoders',
+#: whose training stays bf16).
 FLOAT32_TRAINING_ATTENTION = (256, 64)
 
 
