@@ -216,3 +216,17 @@ def test_a_save_killed_between_its_two_writes_leaves_one_whole_model(tmp_path, w
     save_model(tmp_path / "run", "extractor", model, model.config, {"which": "again"})
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
     assert load_model(tmp_path / "run", "extractor").extra["which"] == "again"
+
+
+def test_a_device_problem_is_not_read_as_a_bad_weights_file(tmp_path):
+    """Weights are read on the CPU and the model moved afterwards, so the device asked for never reaches
+    the file reader (which called a device it could not use a "corrupt weights file")."""
+    import torch
+
+    from emogesture.checkpoints import load_model, save_model
+    from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    save_model(tmp_path / "m", "speech", SpeechDisentangler(cfg), cfg, {})
+    loaded = load_model(tmp_path / "m", "speech", device="meta")
+    assert {p.device.type for p in loaded.model.parameters()} == {"meta"}

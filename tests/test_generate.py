@@ -182,6 +182,45 @@ def test_device_and_precision_flags(runs, tmp_path):
         assert not (tmp_path / "o").exists()
 
 
+def test_gpu_devices_are_checked_and_bf16_is_native_from_ampere_on(monkeypatch):
+    """What --device cuda:N and --precision auto decide on a GPU machine, with torch's view of the GPUs
+    stood in for (this machine has none): cuda:N beyond the GPUs torch sees and malformed names are
+    one-line errors; bf16 counts as native from compute capability 8.0, not where torch emulates it."""
+    from emogesture.errors import EmogestureError
+    from emogesture.runtime import native_bf16, resolve_device
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 2)
+    assert resolve_device("cuda") == "cuda" and resolve_device("CUDA:1") == "cuda:1"
+    with pytest.raises(EmogestureError, match="torch sees 2 GPUs"):
+        resolve_device("cuda:2")
+    for bad in ("cuda:abc", "cudax", "cuda:"):
+        with pytest.raises(EmogestureError, match=f"--device '?{bad}"):
+            resolve_device(bad)
+    monkeypatch.setattr(torch.version, "hip", None)
+    monkeypatch.setattr(torch.cuda, "is_bf16_supported", lambda including_emulation=True: True)
+    for capability, native in (((7, 0), False), ((7, 5), False), ((8, 0), True), ((9, 0), True)):
+        monkeypatch.setattr(torch.cuda, "get_device_capability", lambda device=None, c=capability: c)
+        assert native_bf16("cuda:1") is native, capability
+
+
+def test_float32_generation_on_a_gpu_turns_tf32_off_and_puts_it_back():
+    """``--precision fp32`` keeps float32 exact on a GPU too: inside the inference context cuDNN's
+    convolutions and the matrix products run without TF32; torch's settings are restored after."""
+    from emogesture.runtime import autocast
+
+    before = (torch.backends.cudnn.allow_tf32, torch.get_float32_matmul_precision())
+    torch.set_float32_matmul_precision("high")
+    try:
+        with autocast("fp32", "cuda"):
+            assert torch.backends.cudnn.allow_tf32 is False and torch.get_float32_matmul_precision() == "highest"
+        assert torch.backends.cudnn.allow_tf32 is before[0] and torch.get_float32_matmul_precision() == "high"
+        with autocast("fp32", "cpu"):  # nothing changes on a CPU
+            assert torch.get_float32_matmul_precision() == "high"
+    finally:
+        torch.set_float32_matmul_precision(before[1])
+
+
 def test_a_single_window_draws_one_candidate(runs):
     from emogesture.pipeline.generate import candidates_drawn
 

@@ -385,3 +385,57 @@ def test_joint_group_weights_weigh_only_their_joints_in_the_feature_loss(group):
     setattr(cfg.losses, option, -1.0)
     with pytest.raises(ConfigError, match=option):
         cfg.__post_init__()
+
+
+def test_bf16_mixed_training_noises_float32_latents(monkeypatch):
+    """Under bf16 autocast (``--precision bf16-mixed``) the prior's latents come out in bf16, but the
+    forward diffusion mixes them with the noise in float32: in bf16, 1 − ᾱ₀ = 0.00085 rounds to 0 (no noise
+    at all at t = 0) while sampling runs the float32 schedule."""
+    import torch
+
+    from emogesture.config import to_dict
+    from emogesture.data.prepare import PrepareConfig
+    from emogesture.train import gesture
+    from emogesture.train.gesture import GestureModule, GestureTrainConfig
+
+    cfg = GestureTrainConfig.preset("tiny")
+    cfg.prior_warmup_steps, cfg.align_every = 0, 0
+    d, frames = cfg.model.vae.feature_dim, cfg.model.vae.frames
+    module = GestureModule(to_dict(cfg), [0.0] * d, [0.3] * d, to_dict(PrepareConfig().features))
+    g = torch.Generator().manual_seed(0)
+    conditions = [torch.randn(2, cfg.model.denoiser.cond_dim, generator=g) for _ in range(3)]
+    if cfg.model.hears_timing:
+        conditions.append(torch.rand(2, frames, cfg.model.timing_features, generator=g))
+    batch = {"motion": torch.randn(2, frames, d, generator=g) * 0.3, "emotion": torch.zeros(2, dtype=torch.long),
+             "conditions": conditions}
+    seen, real = [], gesture.add_noise
+
+    def spy(scheduler, z0, noise, t):
+        seen.append((z0.dtype, noise.dtype))
+        return real(scheduler, z0, noise, t)
+
+    monkeypatch.setattr(gesture, "add_noise", spy)
+    monkeypatch.setattr(module, "log", lambda *a, **k: None)
+    monkeypatch.setattr(module, "log_dict", lambda *a, **k: None)
+    with torch.autocast("cpu", dtype=torch.bfloat16):
+        z, _, _ = module.model.prior.encode(batch["motion"], generator=g)
+        loss = module.training_step(batch, 0)
+    assert z.dtype == torch.bfloat16  # what made the difference
+    assert seen == [(torch.float32, torch.float32)] and torch.isfinite(loss)
+
+
+def test_train_refuses_more_devices_than_it_has(monkeypatch, tmp_path, capsys):
+    import torch
+
+    from emogesture.cli.main import main
+
+    args = ["train", "gesture", "--data", str(tmp_path / "cache"), "--speech", str(tmp_path / "speech"),
+            "--out", str(tmp_path / "run")]
+    assert main([*args, "--devices", "0"]) == 2
+    assert "--devices 0: at least 1" in capsys.readouterr().err
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    assert main([*args, "--device", "cuda", "--devices", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "--devices 2: torch sees 1 GPU(s)" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()

@@ -469,3 +469,27 @@ def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_
     paper = GestureModelConfig.preset("paper")
     assert not paper.hears_timing and paper.vae.low_frequency_path == 0 and paper.vae.timing_guidance == 1.0
     assert paper.diffusion.num_inference_steps == 50
+
+
+def test_the_posterior_draw_is_made_on_the_generators_device_and_moved(tiny, monkeypatch):
+    """A CPU generator cannot draw on a GPU (torch raises there), so the posterior sample ε is drawn where
+    the generator is and moved to the latents; on the CPU it is the generator's plain draw. The GPU's
+    rule is emulated with torch's meta device, where a CPU generator would not raise by itself."""
+    x = torch.randn(2, 300, 282, generator=_gen(1)) * 0.3
+    with torch.no_grad():
+        z, mu, logvar = tiny.encode(x, generator=_gen(5))
+    eps = torch.randn(mu.shape, generator=_gen(5))
+    torch.testing.assert_close(z, mu + torch.exp(0.5 * logvar) * eps)
+
+    real = torch.randn
+
+    def gpu_rule(*args, generator=None, device=None, **kwargs):
+        if generator is not None and device is not None and torch.device(device) != generator.device:
+            raise RuntimeError(f"Expected a '{torch.device(device).type}' device type for generator but "
+                               f"found '{generator.device.type}'")
+        return real(*args, generator=generator, device=device, **kwargs)
+
+    monkeypatch.setattr(torch, "randn", gpu_rule)
+    on_meta = MotionVAE(MotionVAEConfig.preset("tiny")).to("meta")
+    z, mu, _ = on_meta.encode(torch.empty(2, 300, 282, device="meta"), generator=_gen(5))
+    assert z.device.type == "meta" and z.shape == mu.shape == (2, 256)

@@ -27,7 +27,7 @@ from torch import nn
 
 from emogesture import __version__
 from emogesture.config import from_dict, to_dict
-from emogesture.errors import ConfigError, InputFileError, OutputExistsError
+from emogesture.errors import ConfigError, EmogestureError, InputFileError, OutputExistsError
 from emogesture.fileio import atomic_output, fsync_dir
 
 FORMAT = "emogesture-model"
@@ -254,13 +254,16 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
     except (RuntimeError, ValueError, TypeError, AttributeError) as e:
         raise InputFileError(meta_path, f"invalid stored config: the model cannot be built from it "
                              f"({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
-    missing, unexpected = _load_weights(model, weights, device)
+    missing, unexpected = _load_weights(model, weights)
     missing = [k for k in missing if k not in getattr(model, "optional_state_keys", ())]
     if missing or unexpected:
         raise InputFileError(
             weights, f"weights do not fit the stored config (missing {list(missing)[:3]}, unexpected {list(unexpected)[:3]})"
         )
-    model.to(device).eval()
+    try:
+        model.to(device).eval()
+    except torch.OutOfMemoryError:
+        raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
     return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path)
 
 
@@ -312,24 +315,25 @@ def _skipped_while_loading(fill: Callable) -> Callable:
     return fill_unless_loading
 
 
-def _load_weights(model: nn.Module, weights: Path, device: str) -> tuple[list[str], list[str]]:
+def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]]:
     """Load a safetensors file into ``model`` one top-level part at a time (the speech model's three
     encoders one after another), so that loading holds the model plus one part, not the model twice:
     loading the paper speech model peaked at 2.1 GiB instead of 2.8. Returns the keys missing from the
     file and those it has that the model lacks; a corrupt file or one that does not fit is an
-    :class:`InputFileError`."""
+    :class:`InputFileError`. The model is still on the CPU here (``load_model`` moves it afterwards), so
+    a device's own errors (a GPU out of memory, a missing ``cuda:N``) are never read as a bad file."""
     parts: dict[str, list[str]] = {}
     missing: set[str] | None = None
     unexpected: list[str] = []
     try:
         stamp = _file_stamp(weights)
-        with safe_open(str(weights), framework="pt", device=device) as f:
+        with safe_open(str(weights), framework="pt", device="cpu") as f:
             for key in f.keys():
                 parts.setdefault(key.split(".", 1)[0], []).append(key)
         for keys in parts.values() or [[]]:
             # the file is mapped into memory while open, and the pages read count as the process's
             # own: opened again for each part, only one part's pages are mapped at a time
-            with safe_open(str(weights), framework="pt", device=device) as f:
+            with safe_open(str(weights), framework="pt", device="cpu") as f:
                 if _file_stamp(weights) != stamp:
                     raise InputFileError(weights, "changed while it was being loaded (saved again?); load it again")
                 part = {k: f.get_tensor(k) for k in keys}

@@ -37,10 +37,16 @@ def cpu_flags() -> frozenset[str]:
 
 
 def native_bf16(device: str | torch.device) -> bool:
-    """True where bf16 matrix products run natively on ``device``."""
+    """True where bf16 matrix products run natively on ``device``: NVIDIA GPUs from compute capability
+    8.0 (Ampere) on, not the older ones where torch only emulates bf16; on ROCm, what torch reports
+    without emulation; CPUs with avx512_bf16 or AMX."""
     device = torch.device(device)
     if device.type == "cuda":
-        return torch.cuda.is_available() and torch.cuda.is_bf16_supported()
+        if not torch.cuda.is_available():
+            return False
+        if torch.version.hip:
+            return torch.cuda.is_bf16_supported(including_emulation=False)
+        return torch.cuda.get_device_capability(device) >= (8, 0)
     return bool({"avx512_bf16", "amx_bf16"} & cpu_flags())
 
 
@@ -49,10 +55,17 @@ def resolve_device(name: str | None) -> str:
     name = (name or "auto").lower()
     if name == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
-    if name.startswith("cuda"):
+    if name == "cuda" or name.startswith("cuda:"):
+        index = name[5:]  # "" for cuda
+        if name != "cuda" and not index.isdigit():
+            raise EmogestureError(f"--device {name!r}: a GPU is cuda or cuda:N, N a number")
         if not torch.cuda.is_available():
             raise EmogestureError(f"--device {name}: no CUDA GPU is visible to torch (this torch is "
                                   f"{torch.__version__}); use --device cpu")
+        count = torch.cuda.device_count()
+        if index and int(index) >= count:
+            raise EmogestureError(f"--device {name}: torch sees {count} GPU{'s' if count != 1 else ''} "
+                                  f"(cuda:0{f' to cuda:{count - 1}' if count > 1 else ''})")
         return name
     if name == "cpu":
         return name
@@ -191,11 +204,33 @@ def _bf16_linears(modules: tuple[nn.Module, ...], pack: bool, saved: list | None
 
 
 @contextmanager
-def autocast(precision: str, device: str | torch.device, *modules: nn.Module):
-    """A context that runs matrix products in bf16 when ``precision == "bf16"`` (else does nothing);
-    ``modules`` hold bf16 weights inside it (:func:`bf16_weights`)."""
-    if precision != "bf16":
+def exact_float32(device: str | torch.device):
+    """A context in which float32 stays float32 on a GPU: cuDNN's convolutions (the patch embedding,
+    the motion decoder's filters) and the matrix products run without TF32 (torch allows TF32 in
+    convolutions by default, and training sets ``float32_matmul_precision("high")``, TF32 in products).
+    Both settings are process-wide and are put back on exit. Nothing changes on a CPU."""
+    if torch.device(device).type != "cuda":
         yield
+        return
+    matmul = torch.get_float32_matmul_precision()
+    cudnn = torch.backends.cudnn
+    try:
+        torch.set_float32_matmul_precision("highest")
+        with cudnn.flags(enabled=cudnn.enabled, benchmark=cudnn.benchmark, deterministic=cudnn.deterministic,
+                         allow_tf32=False):
+            yield
+    finally:
+        torch.set_float32_matmul_precision(matmul)
+
+
+@contextmanager
+def autocast(precision: str, device: str | torch.device, *modules: nn.Module):
+    """A context that runs matrix products in bf16 when ``precision == "bf16"``, ``modules`` holding bf16
+    weights inside it (:func:`bf16_weights`); under any other precision, float32 throughout
+    (:func:`exact_float32`)."""
+    if precision != "bf16":
+        with exact_float32(device):
+            yield
         return
     with bf16_weights(precision, *modules), torch.autocast(device_type=torch.device(device).type,
                                                            dtype=torch.bfloat16):

@@ -60,5 +60,5 @@ def timing_stream(fbank: np.ndarray | torch.Tensor, frames: int = 300, fps: floa
         stream = stream - stream.mean(dim=-1, keepdim=True)
         std = stream.std(dim=-1, keepdim=True)
         stream = torch.where(std > 1e-6, stream / std.clamp_min(1e-6), torch.zeros_like(stream))
-        out.append(stream.transpose(1, 2).contiguous().numpy())
+        out.append(stream.transpose(1, 2).contiguous().cpu().numpy())
     return np.concatenate(out) if out else np.zeros((0, frames, len(TIMING_FEATURES)), np.float32)

@@ -19,7 +19,8 @@ def _engine_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", "--accelerator", dest="accelerator", default="cpu",
                    choices=["cpu", "cuda", "gpu", "auto"], help="cpu (default), cuda (= gpu) or auto")
     p.add_argument("--precision", default="32-true", choices=["32-true", "fp32", "bf16-mixed", "bf16"],
-                   help="32-true (= fp32, default) or bf16-mixed (= bf16: autocast, float32 weights)")
+                   help="32-true (= fp32, default; on GPUs its matrix products use TF32) or bf16-mixed "
+                        "(= bf16: autocast, float32 weights)")
     p.add_argument("--checkpoint-every", type=int, default=200, help="steps between checkpoints (default 200)")
     p.add_argument("--log-every", type=int, default=20, help="steps between logged losses (default 20)")
     p.add_argument("--seed", type=int, default=0, help="seed of weights, sampling and augmentation")
@@ -108,7 +109,16 @@ def run_train_gesture(args: argparse.Namespace) -> int:
         raise EmogestureError("--speech RUN is needed (a trained speech model), except for --variant no_audio")
     base = to_dict(GestureTrainConfig.preset(args.preset, args.variant))
     config = load_config(GestureTrainConfig, args.config, args.overrides, base=base)
-    return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech), "gesture model",
+    import os
+
+    from emogesture.runtime import resolve_device
+
+    # the windows' speech latents are encoded where the training runs: under DDP each process on its own
+    # GPU (LOCAL_RANK, set for the processes Lightning starts), never all of them on the first
+    device = "cpu" if args.accelerator == "cpu" else resolve_device("cuda" if args.accelerator == "gpu" else args.accelerator)
+    if device == "cuda":
+        device = f"cuda:{int(os.environ.get('LOCAL_RANK', 0))}"
+    return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech, device), "gesture model",
                 {"speech": str(args.speech.resolve()) if args.speech else None})
 
 
@@ -147,13 +157,17 @@ def _run(args: argparse.Namespace, command: str, config, build, what: str, more:
 
     precision = {"fp32": "32-true", "bf16": "bf16-mixed"}.get(args.precision, args.precision)
     accelerator = {"cuda": "gpu"}.get(args.accelerator, args.accelerator)
+    from emogesture.errors import EmogestureError
+
+    if args.devices < 1:
+        raise EmogestureError(f"--devices {args.devices}: at least 1")
     if accelerator == "gpu":
         import torch
 
-        from emogesture.errors import EmogestureError
-
         if not torch.cuda.is_available():
             raise EmogestureError(f"--device {args.accelerator}: no CUDA GPU is visible to torch; use --device cpu")
+        if args.devices > torch.cuda.device_count():
+            raise EmogestureError(f"--devices {args.devices}: torch sees {torch.cuda.device_count()} GPU(s)")
     settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=accelerator,
                            precision=precision, checkpoint_every=args.checkpoint_every,
                            log_every=args.log_every, progress=not args.quiet, seed=args.seed)

@@ -37,8 +37,10 @@ def draw_noise(
     gens = list(generator)
     if len(gens) != batch:
         raise ValueError(f"got {len(gens)} generators for a batch of {batch}")
-    rows = [torch.randn(dim, generator=g, device=g.device, dtype=dtype).to(device) for g in gens]
-    return torch.stack(rows)
+    if not gens:
+        return torch.empty(0, dim, device=device, dtype=dtype)
+    rows = [torch.randn(dim, generator=g, device=g.device, dtype=dtype) for g in gens]
+    return torch.stack([r.to(rows[0].device) for r in rows]).to(device)  # one copy to a GPU, not one a row
 
 
 def sample_timesteps(

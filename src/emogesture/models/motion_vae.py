@@ -332,7 +332,10 @@ class MotionVAE(nn.Module):
             mu = mu + self.detail_mu(coefficients.reshape(b, -1))
         if not sample:
             return mu, mu, logvar
-        eps = torch.randn(mu.shape, generator=generator, device=mu.device, dtype=mu.dtype)
+        # drawn on the generator's own device, then moved: a CPU generator cannot draw on a GPU, and the
+        # noise does not depend on where the model runs
+        eps = torch.randn(mu.shape, generator=generator, dtype=mu.dtype,
+                          device=mu.device if generator is None else generator.device).to(mu.device)
         return mu + torch.exp(0.5 * logvar) * eps, mu, logvar
 
     def decode(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None) -> torch.Tensor:

@@ -260,10 +260,13 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
             with torch.no_grad():
                 z, _, _ = prior.encode(m, generator=g)
         if phase_denoiser:
-            z0 = z.detach()
+            # float32 even where the prior ran under bf16 autocast: the noising mixes z0 and the noise by
+            # the schedule's √ᾱ and √(1-ᾱ), and in bf16 1-ᾱ rounds to 0 at t = 0 (0.00085) and to 0.0039
+            # at t = 5 (0.0052), while sampling runs the float32 schedule
+            z0 = z.detach().float()
             r = cfg.ld_repeats  # each window noised at r timesteps: r × the denoiser's samples per step
             z0r, conds_r = z0.repeat(r, 1), [c.repeat(r, *[1] * (c.dim() - 1)) for c in conds]
-            noise = draw_noise(g, b * r, z0.shape[1]).to(z0)
+            noise = draw_noise(g, b * r, z0.shape[1]).to(z0.device)
             t = sample_timesteps(g, b * r, cfg.model.diffusion.num_train_timesteps).to(z0.device)
             pred = self.model.denoiser(add_noise(self.ddpm, z0r, noise, t), t, conds_r)
             losses["ld"] = F.mse_loss(pred, training_target(self.ddpm, z0r, noise, t))
@@ -304,11 +307,13 @@ class GestureDataModule(L.LightningDataModule):
                           generator=torch.Generator().manual_seed(self.seed), num_workers=self.num_workers)
 
 
-def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Path | None):
+def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Path | None, device: str = "cpu"):
+    """Data, module and export of a gesture training; ``device`` encodes the windows' speech latents
+    (once, then cached beside the windows) in float32."""
     cache = open_cache(cache_dir)
     train = cache.split("train")
     variant = config.model.variant
-    speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(speech_run)
+    speech = None if variant == "no_audio" else SpeechLatentEncoder.from_run(speech_run, device=device)
     timing = config.model.hears_timing
     conds = window_conditions(variant, cache, "train", speech, timing)
     mean = np.asarray(cache.stats["motion_mean"], np.float32)
