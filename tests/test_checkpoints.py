@@ -230,3 +230,21 @@ def test_a_device_problem_is_not_read_as_a_bad_weights_file(tmp_path):
     save_model(tmp_path / "m", "speech", SpeechDisentangler(cfg), cfg, {})
     loaded = load_model(tmp_path / "m", "speech", device="meta")
     assert {p.device.type for p in loaded.model.parameters()} == {"meta"}
+
+
+def test_a_model_too_large_for_the_device_is_a_one_line_error(tmp_path, monkeypatch):
+    import torch
+
+    from emogesture.checkpoints import load_model, save_model
+    from emogesture.errors import EmogestureError
+    from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    save_model(tmp_path / "m", "speech", SpeechDisentangler(cfg), cfg, {})
+
+    def out_of_memory(self, *args, **kwargs):
+        raise torch.cuda.OutOfMemoryError("CUDA out of memory. Tried to allocate 20.00 MiB")
+
+    monkeypatch.setattr(torch.nn.Module, "to", out_of_memory)
+    with pytest.raises(EmogestureError, match=r"model\.json: the model does not fit in the memory of cuda:1$"):
+        load_model(tmp_path / "m", "speech", device="cuda:1")

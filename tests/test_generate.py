@@ -204,21 +204,49 @@ def test_gpu_devices_are_checked_and_bf16_is_native_from_ampere_on(monkeypatch):
         assert native_bf16("cuda:1") is native, capability
 
 
-def test_float32_generation_on_a_gpu_turns_tf32_off_and_puts_it_back():
+@pytest.mark.parametrize("before", ["default", "training", "per-operator"])
+def test_float32_generation_on_a_gpu_turns_tf32_off_and_puts_it_back(before):
     """``--precision fp32`` keeps float32 exact on a GPU too: inside the inference context cuDNN's
-    convolutions and the matrix products run without TF32; torch's settings are restored after."""
+    convolutions and the matrix products run without TF32, and torch's settings come back exactly as
+    they were, whichever way they were set: torch's defaults, the training engine's
+    ``float32_matmul_precision("high")``, or torch 2.9's per-operator ``fp32_precision`` (after which
+    torch refuses to read its older cuDNN flag). torch checks at every product that its two ways agree,
+    which the matrix products' flag read here does too."""
     from emogesture.runtime import autocast
 
-    before = (torch.backends.cudnn.allow_tf32, torch.get_float32_matmul_precision())
-    torch.set_float32_matmul_precision("high")
+    matmul, cudnn = torch.backends.cuda.matmul, torch.backends.cudnn
+    torch_defaults = (torch.get_float32_matmul_precision(), cudnn.allow_tf32,
+                      [(b, b.fp32_precision) for b in (matmul, cudnn.conv, cudnn.rnn)])
+    torch.set_float32_matmul_precision("highest")
+    if before == "training":
+        torch.set_float32_matmul_precision("high")
+    if before == "per-operator":
+        cudnn.conv.fp32_precision = "tf32"
+        cudnn.rnn.fp32_precision = "ieee"
+
+    def state():
+        try:
+            legacy_cudnn = cudnn.allow_tf32
+        except RuntimeError:
+            legacy_cudnn = "unreadable"
+        return (torch.get_float32_matmul_precision(), matmul.fp32_precision, matmul.allow_tf32,
+                cudnn.conv.fp32_precision, cudnn.rnn.fp32_precision, legacy_cudnn)
+
+    saved = state()
     try:
         with autocast("fp32", "cuda"):
-            assert torch.backends.cudnn.allow_tf32 is False and torch.get_float32_matmul_precision() == "highest"
-        assert torch.backends.cudnn.allow_tf32 is before[0] and torch.get_float32_matmul_precision() == "high"
+            with autocast("fp32", "cuda:0"):  # nested (or another thread): restored when the last leaves
+                pass
+            assert matmul.allow_tf32 is False and cudnn.conv.fp32_precision in ("none", "ieee")
+            assert state() != saved
+        assert state() == saved
         with autocast("fp32", "cpu"):  # nothing changes on a CPU
-            assert torch.get_float32_matmul_precision() == "high"
-    finally:
-        torch.set_float32_matmul_precision(before[1])
+            assert state() == saved
+    finally:  # this process's settings as they were before the test
+        torch.set_float32_matmul_precision(torch_defaults[0])
+        cudnn.allow_tf32 = torch_defaults[1]
+        for backend, value in torch_defaults[2]:
+            backend.fp32_precision = value
 
 
 def test_a_single_window_draws_one_candidate(runs):

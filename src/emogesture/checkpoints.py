@@ -262,7 +262,7 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         )
     try:
         model.to(device).eval()
-    except torch.OutOfMemoryError:
+    except torch.cuda.OutOfMemoryError:
         raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
     return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path)
 

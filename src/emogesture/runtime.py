@@ -9,6 +9,7 @@ bf16; their outputs are returned in float32. The drift this causes is measured b
 
 from __future__ import annotations
 
+import threading
 import time
 from contextlib import contextmanager
 from functools import lru_cache, partial
@@ -203,24 +204,71 @@ def _bf16_linears(modules: tuple[nn.Module, ...], pack: bool, saved: list | None
                         patched.append(layer)
 
 
+_FLOAT32_LOCK = threading.Lock()
+_float32_depth = 0
+_float32_saved: dict[str, object] = {}
+
+
+def _cudnn_legacy_tf32() -> bool | None:
+    """``torch.backends.cudnn.allow_tf32``, or None where torch refuses to read it (the process set
+    cuDNN's TF32 through the per-operator ``fp32_precision`` settings, torch 2.9 on)."""
+    try:
+        return torch.backends.cudnn.allow_tf32
+    except RuntimeError:
+        return None
+
+
+def _float32_enter() -> None:
+    """Turn TF32 off for CUDA matrix products and cuDNN convolutions, keeping torch's older flags and its
+    per-operator ``fp32_precision`` settings (torch 2.9 on) in agreement, as torch checks at every
+    product; what they were is kept in ``_float32_saved``."""
+    cudnn, saved = torch.backends.cudnn, _float32_saved
+    saved["matmul"] = torch.get_float32_matmul_precision()
+    saved["cudnn"] = _cudnn_legacy_tf32()
+    per_op = {"cuda.matmul": torch.backends.cuda.matmul, "cudnn.conv": getattr(cudnn, "conv", None),
+              "cudnn.rnn": getattr(cudnn, "rnn", None)}
+    saved["per_op"] = {k: (v, v.fp32_precision) for k, v in per_op.items() if hasattr(v, "fp32_precision")}
+    torch.set_float32_matmul_precision("highest")  # sets cuda.matmul's fp32_precision to match
+    if saved["cudnn"] is not None:
+        cudnn.allow_tf32 = False  # sets conv's and rnn's to match
+    elif "cudnn.conv" in saved["per_op"]:
+        cudnn.conv.fp32_precision = "ieee"  # what convolutions read; the older flag stays unreadable
+
+
+def _float32_exit() -> None:
+    saved = _float32_saved
+    torch.set_float32_matmul_precision(saved["matmul"])
+    if saved["cudnn"] is not None:
+        torch.backends.cudnn.allow_tf32 = saved["cudnn"]
+    for backend, value in saved["per_op"].values():
+        backend.fp32_precision = value
+    saved.clear()
+
+
 @contextmanager
 def exact_float32(device: str | torch.device):
     """A context in which float32 stays float32 on a GPU: cuDNN's convolutions (the patch embedding,
     the motion decoder's filters) and the matrix products run without TF32 (torch allows TF32 in
     convolutions by default, and training sets ``float32_matmul_precision("high")``, TF32 in products).
-    Both settings are process-wide and are put back on exit. Nothing changes on a CPU."""
+
+    The settings are process-wide: they are changed when the first thread enters and put back, exactly
+    as they were, when the last one leaves (a bf16 run in another thread meanwhile keeps its bf16
+    products). Nothing changes on a CPU."""
+    global _float32_depth
     if torch.device(device).type != "cuda":
         yield
         return
-    matmul = torch.get_float32_matmul_precision()
-    cudnn = torch.backends.cudnn
+    with _FLOAT32_LOCK:
+        if _float32_depth == 0:
+            _float32_enter()
+        _float32_depth += 1
     try:
-        torch.set_float32_matmul_precision("highest")
-        with cudnn.flags(enabled=cudnn.enabled, benchmark=cudnn.benchmark, deterministic=cudnn.deterministic,
-                         allow_tf32=False):
-            yield
+        yield
     finally:
-        torch.set_float32_matmul_precision(matmul)
+        with _FLOAT32_LOCK:
+            _float32_depth -= 1
+            if _float32_depth == 0:
+                _float32_exit()
 
 
 @contextmanager

@@ -113,11 +113,15 @@ def run_train_gesture(args: argparse.Namespace) -> int:
 
     from emogesture.runtime import resolve_device
 
-    # the windows' speech latents are encoded where the training runs: under DDP each process on its own
-    # GPU (LOCAL_RANK, set for the processes Lightning starts), never all of them on the first
+    # the speech model that encodes the windows' latents (once; later runs and the other DDP processes read
+    # them from the cache) is loaded where the training runs: under DDP each process on its own GPU
+    # (LOCAL_RANK, set for the processes Lightning starts, or SLURM's), not all of them on the first
     device = "cpu" if args.accelerator == "cpu" else resolve_device("cuda" if args.accelerator == "gpu" else args.accelerator)
     if device == "cuda":
-        device = f"cuda:{int(os.environ.get('LOCAL_RANK', 0))}"
+        import torch
+
+        local = int(os.environ.get("LOCAL_RANK", os.environ.get("SLURM_LOCALID", 0)))
+        device = f"cuda:{local % torch.cuda.device_count()}"
     return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech, device), "gesture model",
                 {"speech": str(args.speech.resolve()) if args.speech else None})
 
