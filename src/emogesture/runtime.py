@@ -9,6 +9,7 @@ bf16; their outputs are returned in float32. The drift this causes is measured b
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from contextlib import contextmanager
@@ -71,6 +72,19 @@ def resolve_device(name: str | None) -> str:
     if name == "cpu":
         return name
     raise EmogestureError(f"--device {name!r}: choose one of {', '.join(DEVICES)} (or cuda:N)")
+
+
+def process_device(accelerator: str) -> str:
+    """The device of this training process for ``--device cpu|cuda|gpu|auto``: under DDP each process's
+    own GPU (``LOCAL_RANK``, set for the processes Lightning starts, or SLURM's ``SLURM_LOCALID``; modulo
+    the GPUs it sees), not all of them the first."""
+    if accelerator == "cpu":
+        return "cpu"
+    device = resolve_device("cuda" if accelerator == "gpu" else accelerator)
+    if device != "cuda":
+        return device
+    local = int(os.environ.get("LOCAL_RANK", os.environ.get("SLURM_LOCALID", 0)))
+    return f"cuda:{local % torch.cuda.device_count()}"
 
 
 def resolve_precision(precision: str | None, device: str | torch.device) -> str:

@@ -109,19 +109,11 @@ def run_train_gesture(args: argparse.Namespace) -> int:
         raise EmogestureError("--speech RUN is needed (a trained speech model), except for --variant no_audio")
     base = to_dict(GestureTrainConfig.preset(args.preset, args.variant))
     config = load_config(GestureTrainConfig, args.config, args.overrides, base=base)
-    import os
-
-    from emogesture.runtime import resolve_device
+    from emogesture.runtime import process_device
 
     # the speech model that encodes the windows' latents (once; later runs and the other DDP processes read
-    # them from the cache) is loaded where the training runs: under DDP each process on its own GPU
-    # (LOCAL_RANK, set for the processes Lightning starts, or SLURM's), not all of them on the first
-    device = "cpu" if args.accelerator == "cpu" else resolve_device("cuda" if args.accelerator == "gpu" else args.accelerator)
-    if device == "cuda":
-        import torch
-
-        local = int(os.environ.get("LOCAL_RANK", os.environ.get("SLURM_LOCALID", 0)))
-        device = f"cuda:{local % torch.cuda.device_count()}"
+    # them from the cache) is loaded where this process trains
+    device = process_device(args.accelerator)
     return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech, device), "gesture model",
                 {"speech": str(args.speech.resolve()) if args.speech else None})
 
@@ -170,8 +162,8 @@ def _run(args: argparse.Namespace, command: str, config, build, what: str, more:
 
         if not torch.cuda.is_available():
             raise EmogestureError(f"--device {args.accelerator}: no CUDA GPU is visible to torch; use --device cpu")
-        if args.devices > torch.cuda.device_count():
-            raise EmogestureError(f"--devices {args.devices}: torch sees {torch.cuda.device_count()} GPU(s)")
+        if args.devices > (count := torch.cuda.device_count()):
+            raise EmogestureError(f"--devices {args.devices}: torch sees {count} GPU(s)")
     settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=accelerator,
                            precision=precision, checkpoint_every=args.checkpoint_every,
                            log_every=args.log_every, progress=not args.quiet, seed=args.seed)

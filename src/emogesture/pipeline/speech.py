@@ -158,8 +158,9 @@ class SpeechLatentEncoder:
         key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}_{array_digest(windows.fbank)}"
         if self.precision != "fp32":
             key += f"_{self.precision}"
-        if torch.device(self.device).type != "cpu":  # another device's float32 differs in the last bits
-            key += f"_{torch.device(self.device).type}"
+        device = torch.device(self.device).type
+        if device != "cpu":  # another device's float32 differs in the last bits
+            key += f"_{device}"
         path = Path(cache.root) / "latents" / f"{key}.npz"
         if path.is_file():
             with np.load(path) as z:
