@@ -66,3 +66,33 @@ def test_motion_stats_command(tmp_path):
     assert again.returncode == 2 and "already exists" in again.stderr
     bad = subprocess.run(cli("motion-stats", tmp_path / "nothing"), capture_output=True, text=True)
     assert bad.returncode == 2 and "nothing: not found" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_gesture_space_reads_the_body_frame():
+    """A hand in front of the chest and the wrists' distance, in the body's own frame: the same pose
+    turned about the vertical axis reads the same, and bending the forearms forward moves both numbers."""
+    from emogesture.eval.motion_stats import body_frame, hands_in_front, wrist_distance
+
+    down = np.zeros((30, 55, 3))
+    down[:, J["left_shoulder"], 2] = -1.3  # arms hanging by the sides
+    down[:, J["right_shoulder"], 2] = 1.3
+    r = motion_statistics([_pose(down)])
+    assert r["hand_in_front_share"] == 0.0 and r["constants"]["front_m"] == 0.15
+    front = down.copy()
+    front[:, J["left_elbow"], 1] = -1.5  # forearms raised forward (elbows bent 90 degrees)
+    front[:, J["right_elbow"], 1] = 1.5
+    f = motion_statistics([_pose(front)])
+    assert f["hand_in_front_share"] == 1.0
+    assert f["wrist_distance_median"] < r["wrist_distance_median"]
+    turned = front.copy()
+    turned[:, J["pelvis"], 1] = 1.0  # the whole body turned by a radian: its own frame turns with it
+    joints = _pose(turned)[1]
+    x, up, forward = body_frame(joints)
+    straight = body_frame(_pose(front)[1])[2]  # facing +z, turned by a radian about y
+    c, s = np.cos(1.0), np.sin(1.0)
+    assert np.allclose(forward, straight @ np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]]), atol=1e-5)
+    assert straight[0] @ np.array([0.0, 0.0, 1.0]) > 0.99
+    assert hands_in_front(joints).all()
+    assert np.allclose(wrist_distance(joints), wrist_distance(_pose(front)[1]), atol=1e-5)
+    half = np.concatenate([down, front])
+    assert motion_statistics([_pose(half)])["hand_in_front_share"] == pytest.approx(0.5)

@@ -37,10 +37,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
     p.set_defaults(func=run_evaluate_gesture)
 
+    p = esub.add_parser("real", help="real recorded speech: perception, trust and motion beside held-out corpus voices",
+                        description="Generate for real read speech (Debian's pocketsphinx-testdata) and for the "
+                        "held-out split's takes of the same emotion; report the emotion heard per window, the "
+                        "windows --emotion auto trusts, and where the hands work, with pass/fail checks.")
+    p.add_argument("--model", type=Path, help="gesture model run folder or JSON (default: the bundled model)")
+    p.add_argument("--data", required=True, type=Path, help="windows cache whose split gives the reference takes")
+    p.add_argument("--split", default="test", help="reference split (default test)")
+    p.add_argument("--real", type=Path, help="folder of the real recordings (default: pocketsphinx-testdata's)")
+    p.add_argument("--seeds", type=int, default=4, help="sampling seeds pooled for the motion (default 4)")
+    p.add_argument("--out", required=True, type=Path, help="output folder (real_speech.json, real_speech.md)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports")
+    p.set_defaults(func=run_evaluate_real)
+
     p = sub.add_parser("motion-stats", help="how lively motion is: joint angular speed, hand speed and posture",
                        description="Statistics of SMPL-X motion (BEAT2 npz): per-joint angular speed, wrist speed "
                        "(mean, 95th percentile), and the share of frames with a wrist below the pelvis, an elbow "
-                       "opened beyond 150 degrees, a wrist slower than 0.05 m/s. One column per SOURCE.")
+                       "opened beyond 150 degrees, a wrist slower than 0.05 m/s, a hand at least 0.15 m in front "
+                       "of the chest (the body's own frame), and the wrists' median distance. One column per SOURCE.")
     p.add_argument("sources", nargs="+", metavar="[NAME=]SOURCE",
                    help="a BEAT2 root, a folder of .npz files or one .npz file (loose .npz files form one column)")
     p.add_argument("--every", type=int, default=1, help="use every N-th file of each source (default 1)")
@@ -110,6 +124,15 @@ def _named_paths(items: list[str], flag: str, shape: str) -> dict[str, Path]:
             raise EmogestureError(f"{flag}: the name {name!r} is given twice")
         out[name] = Path(path)
     return out
+
+
+def run_evaluate_real(args: argparse.Namespace) -> int:
+    from emogesture.eval.real_speech import evaluate_real_speech, real_speech_markdown
+
+    result = evaluate_real_speech(args.model, args.data, args.out, args.split, args.real, args.seeds, args.overwrite)
+    print(real_speech_markdown(result), end="")
+    print(f"wrote {args.out / 'real_speech.json'} and {args.out / 'real_speech.md'}")
+    return 0
 
 
 def run_motion_stats(args: argparse.Namespace) -> int:

@@ -11,6 +11,11 @@ be held against each other and against real conversational motion (issue 17's ta
 - **Posture**: the share of wrist-frames with the wrist below the pelvis (height = the y axis, SMPL-X's
   up) and of elbow-frames opened beyond ``open_elbow_deg`` (the angle at the elbow between the upper
   arm and the forearm; 180° = straight).
+- **Gesture space**, in the body's own frame (:func:`body_frame`): the share of hand-frames with the
+  wrist at least ``front_m`` ahead of the shoulders' midpoint (a hand in front of the chest; both hands
+  pooled) and the median distance between the wrists. Real conversational motion capture keeps a hand
+  in front in about half its frames, with the wrists about half a metre apart; arms hanging out to the
+  sides read low on the first and high on the second.
 """
 
 from __future__ import annotations
@@ -32,7 +37,8 @@ STAT_JOINTS: tuple[str, ...] = (
     "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
 )  # fmt: skip
 _J = {name: i for i, name in enumerate(JOINT_NAMES)}
-MOTION_STATS_CONSTANTS = {"still_speed_m_s": 0.05, "open_elbow_deg": 150.0, "speed_quantile": 0.95}
+MOTION_STATS_CONSTANTS = {"still_speed_m_s": 0.05, "open_elbow_deg": 150.0, "speed_quantile": 0.95,
+                          "front_m": 0.15}
 
 
 def joint_angular_speed(poses: np.ndarray) -> np.ndarray:
@@ -54,6 +60,35 @@ def elbow_angles_deg(joints: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
+def body_frame(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joint positions ``[T, 55, 3]`` -> the body's own axes, each ``[T, 3]`` unit vectors: ``x`` from the
+    right to the left shoulder, ``up`` from the pelvis to spine3 made orthogonal to ``x``, and
+    ``forward = x × up`` (the way the chest faces)."""
+    joints = np.asarray(joints, np.float64)
+    x = joints[:, _J["left_shoulder"]] - joints[:, _J["right_shoulder"]]
+    x /= np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
+    up = joints[:, _J["spine3"]] - joints[:, _J["pelvis"]]
+    up -= (up * x).sum(-1, keepdims=True) * x
+    up /= np.maximum(np.linalg.norm(up, axis=-1, keepdims=True), 1e-12)
+    return x, up, np.cross(x, up)
+
+
+def hands_in_front(joints: np.ndarray, front_m: float = MOTION_STATS_CONSTANTS["front_m"]) -> np.ndarray:
+    """Joint positions ``[T, 55, 3]`` -> ``[T, 2]`` bool (left, right): the wrist is at least ``front_m``
+    ahead of the shoulders' midpoint along the body's forward axis (:func:`body_frame`)."""
+    joints = np.asarray(joints, np.float64)
+    _, _, forward = body_frame(joints)
+    chest = 0.5 * (joints[:, _J["left_shoulder"]] + joints[:, _J["right_shoulder"]])
+    wrists = joints[:, [_J["left_wrist"], _J["right_wrist"]]]
+    return ((wrists - chest[:, None]) * forward[:, None]).sum(-1) >= front_m
+
+
+def wrist_distance(joints: np.ndarray) -> np.ndarray:
+    """Joint positions ``[T, 55, 3]`` -> the distance between the two wrists ``[T]`` (m)."""
+    joints = np.asarray(joints, np.float64)
+    return np.linalg.norm(joints[:, _J["left_wrist"]] - joints[:, _J["right_wrist"]], axis=-1)
+
+
 @dataclass
 class _Pool:
     """Running sums over sequences, frame-weighted."""
@@ -62,6 +97,8 @@ class _Pool:
     wrist_speed: list[np.ndarray] = field(default_factory=list)
     below_pelvis: list[np.ndarray] = field(default_factory=list)
     elbow: list[np.ndarray] = field(default_factory=list)
+    in_front: list[np.ndarray] = field(default_factory=list)
+    wrist_distance: list[np.ndarray] = field(default_factory=list)
     frames: int = 0
     seconds: float = 0.0
 
@@ -69,12 +106,14 @@ class _Pool:
 def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
                       still_speed: float = MOTION_STATS_CONSTANTS["still_speed_m_s"],
                       open_elbow_deg: float = MOTION_STATS_CONSTANTS["open_elbow_deg"],
-                      quantile: float = MOTION_STATS_CONSTANTS["speed_quantile"]) -> dict:
+                      quantile: float = MOTION_STATS_CONSTANTS["speed_quantile"],
+                      front_m: float = MOTION_STATS_CONSTANTS["front_m"]) -> dict:
     """Statistics pooled over ``sequences`` of ``(poses [T, 55, 3] axis-angle, joints [T, 55, 3] m, fps)``.
 
     Returns ``{"angular_speed": {joint: rad/frame}, "wrist_speed_mean", "wrist_speed_p95" (m/s),
-    "wrist_still_share", "wrist_below_pelvis_share", "elbow_open_share", "sequences", "frames",
-    "seconds", "constants"}``. Sequences shorter than 2 frames are skipped.
+    "wrist_still_share", "wrist_below_pelvis_share", "elbow_open_share", "hand_in_front_share",
+    "wrist_distance_median" (m), "sequences", "frames", "seconds", "constants"}``. Sequences shorter
+    than 2 frames are skipped.
     """
     pool = _Pool()
     for poses, joints, fps in sequences:
@@ -86,6 +125,8 @@ def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
         pool.wrist_speed.append((np.linalg.norm(np.diff(wrists, axis=0), axis=-1) * fps).reshape(-1))
         pool.below_pelvis.append((wrists[..., 1] < joints[:, None, _J["pelvis"], 1]).reshape(-1))
         pool.elbow.append(elbow_angles_deg(joints).reshape(-1))
+        pool.in_front.append(hands_in_front(joints, front_m).reshape(-1))
+        pool.wrist_distance.append(wrist_distance(joints))
         pool.frames += len(poses)
         pool.seconds += len(poses) / fps
     if not pool.angular:
@@ -99,8 +140,11 @@ def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
         "wrist_still_share": float((speed < still_speed).mean()),
         "wrist_below_pelvis_share": float(np.concatenate(pool.below_pelvis).mean()),
         "elbow_open_share": float((np.concatenate(pool.elbow) > open_elbow_deg).mean()),
+        "hand_in_front_share": float(np.concatenate(pool.in_front).mean()),
+        "wrist_distance_median": float(np.median(np.concatenate(pool.wrist_distance))),
         "sequences": len(pool.angular), "frames": pool.frames, "seconds": round(pool.seconds, 2),
-        "constants": {"still_speed_m_s": still_speed, "open_elbow_deg": open_elbow_deg, "speed_quantile": quantile},
+        "constants": {"still_speed_m_s": still_speed, "open_elbow_deg": open_elbow_deg, "speed_quantile": quantile,
+                      "front_m": front_m},
     }
 
 
@@ -115,6 +159,8 @@ def motion_stats_markdown(results: dict[str, dict]) -> str:
             ("wrist below the pelvis", "wrist_below_pelvis_share", "{:.1%}"),
             ("elbow opened beyond 150°", "elbow_open_share", "{:.1%}"),
             ("wrist slower than 0.05 m/s", "wrist_still_share", "{:.1%}"),
+            ("a hand >= 0.15 m in front of the chest", "hand_in_front_share", "{:.1%}"),
+            ("wrists' median distance (m)", "wrist_distance_median", "{:.3f}"),
             ("sequences / seconds", None, None))
     for label, key, fmt in rows:
         if key is None:

@@ -1,0 +1,70 @@
+"""Real recorded speech (Debian's pocketsphinx-testdata): the recordings, and the report that holds a model's
+perception and motion on them against held-out corpus takes."""
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from emogesture.data.prepare import prepare
+from emogesture.data.real_speech import RECORDINGS, load_real_recording, real_recordings
+from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
+from emogesture.eval.real_speech import evaluate_real_speech, real_speech_checks
+
+from helpers import cli, make_root
+
+
+def test_the_real_recordings_are_whole_and_leave_tidigits_out():
+    found = real_recordings()
+    assert [r.name for r in found] == ["librivox", "cards", "cmu"]
+    assert not any("tidigits" in c for r in RECORDINGS for c in r.clips)  # LDC data, left out
+    seconds = {r.name: len(load_real_recording(r)) / 16000 for r in found}
+    assert seconds == pytest.approx({"librivox": 25.93, "cards": 10.85, "cmu": 10.41}, abs=0.01)
+    for r in found:
+        wave = load_real_recording(r)
+        assert wave.dtype == np.float32 and np.abs(wave).max() <= 1.01  # the mean removed from full scale
+        # speech, not noise: loud 10-ms frames, and pauses an order of magnitude quieter
+        frames = np.sqrt((wave[: len(wave) // 160 * 160].reshape(-1, 160) ** 2).mean(1))
+        loud = np.quantile(frames, 0.9)
+        assert loud > 0.05 and (frames < 0.1 * loud).mean() > 0.05
+
+
+def test_missing_recordings_are_a_one_line_error(tmp_path):
+    with pytest.raises(EmogestureError, match="pocketsphinx-testdata"):
+        real_recordings(tmp_path)
+    with pytest.raises(InputFileError, match="not found"):
+        load_real_recording(RECORDINGS[0], tmp_path)
+
+
+def _checks(heard, trusted, front, distance):
+    return real_speech_checks({"pooled": {"real": {"heard_share": heard, "trusted_share": trusted}},
+                               "motion": {"real": {"hand_in_front_share": front[0], "wrist_distance_median": distance[0]},
+                                          "reference": {"hand_in_front_share": front[1],
+                                                        "wrist_distance_median": distance[1]}}})
+
+
+def test_each_check_can_fail_and_pass():
+    good = _checks(0.8, 0.75, (0.40, 0.45), (0.55, 0.58))
+    assert all(c["pass"] for c in good.values())
+    for bad in (_checks(0.6, 0.75, (0.40, 0.45), (0.55, 0.58)), _checks(0.8, 0.5, (0.40, 0.45), (0.55, 0.58)),
+                _checks(0.8, 0.75, (0.24, 0.45), (0.55, 0.58)), _checks(0.8, 0.75, (0.40, 0.45), (0.65, 0.58))):
+        assert sum(not c["pass"] for c in bad.values()) == 1
+
+
+def test_report_of_the_bundled_model(tmp_path):
+    make_root(tmp_path / "root", speakers=(1,), takes=(1, 2))  # take 2 (neutral) is the test split
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    r = evaluate_real_speech(None, tmp_path / "cache", tmp_path / "out", "test", seeds=1, progress=False)
+    assert set(r["real"]) == {"librivox", "cards", "cmu"} and set(r["reference"]) == {"1_wayne_0_2_2"}
+    assert r["pooled"]["real"]["windows"] == sum(row["windows"] for row in r["real"].values()) >= 6
+    assert r["split_use"]["held_out"] and len(r["checks"]) == 4
+    assert r["motion"]["real"]["seconds"] == pytest.approx(25.93 + 10.85 + 10.41, abs=0.1)
+    written = json.loads((tmp_path / "out" / "real_speech.json").read_text())
+    assert written["checks"] == r["checks"]
+    assert "| librivox | real |" in (tmp_path / "out" / "real_speech.md").read_text()
+    with pytest.raises(OutputExistsError):
+        evaluate_real_speech(None, tmp_path / "cache", tmp_path / "out", "test", seeds=1, progress=False)
+    out = subprocess.run(cli("evaluate", "real", "--data", tmp_path / "cache", "--out", tmp_path / "o2",
+                             "--seeds", "0"), capture_output=True, text=True)
+    assert out.returncode != 0 and "--seeds 0" in out.stderr and "Traceback" not in out.stderr
