@@ -7,7 +7,7 @@ import pytest
 
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
-from emogesture.pipeline.perception import EmotionPerception, auto_emotion, fit_perception
+from emogesture.pipeline.perception import EmotionPerception, auto_emotion, auto_style, fit_perception
 from emogesture.pipeline.speech import EncodedWindows
 
 
@@ -54,6 +54,25 @@ def test_auto_blends_untrusted_windows_toward_neutral_only():
     blended = auto_emotion(outside.astype(np.float32), outside, p)
     assert np.allclose(blended, np.broadcast_to(p.neutral(), blended.shape), atol=1e-4)
     assert auto_emotion(outside, outside, None) is outside  # an uncalibrated model keeps its latents
+
+
+def test_auto_moves_an_unfamiliar_voice_to_the_typical_training_style():
+    p, train, _ = fitted()
+    k = p.typical_speaker()
+    centre = p.voice.means.mean(0)
+    assert all(np.linalg.norm(p.voice.means[k] - centre) <= np.linalg.norm(m - centre) + 1e-9 for m in p.voice.means)
+    inside = train[:5].astype(np.float32)
+    assert np.allclose(auto_style(inside, p), inside, atol=1e-5)  # a familiar voice keeps its style
+    outside = inside + 50.0
+    moved = auto_style(outside, p)
+    assert np.allclose(moved, np.broadcast_to(p.typical_style(), moved.shape), atol=1e-4)
+    half = p.voice.means[k] + (2 * 0.75 * p.voice.threshold) * p.voice.axes[0] * np.sqrt(p.voice.variances[0] * 
+                                                                                     train.shape[1])
+    t = p.voice.trust(half[None])[0]
+    assert 0.0 < t < 1.0  # partly trusted: partly moved
+    assert np.allclose(auto_style(half[None].astype(np.float32), p)[0], t * half + (1 - t) * p.typical_style(),
+                       atol=1e-4)
+    assert auto_style(outside, None) is outside
 
 
 def test_round_trip_and_refusals():

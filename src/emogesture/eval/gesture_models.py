@@ -46,7 +46,7 @@ from emogesture.pipeline.conditions import (
 )
 from emogesture.pipeline.generate import (HOP_SECONDS, WINDOW_SECONDS, GesturePipeline, largest_joint_jumps,
                                           stitch)
-from emogesture.pipeline.perception import auto_emotion, perception_of
+from emogesture.pipeline.perception import auto_emotion, auto_style, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.types import SMPLXSequence
 
@@ -492,12 +492,14 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         seeds = window_seeds(seed, len(windows))
         sources[name] = generate_from_conditions(gesture, conds, seeds)
         perception = perception_of(speech) if name == main and speech is not None else None
-        if perception is not None:  # `generate --emotion auto`: untrusted emotion latents blended toward neutral
+        if perception is not None:  # `generate --emotion auto`: untrusted emotion latents blended toward neutral,
+            # an unfamiliar voice's style toward the typical training style
             trust = perception.trust(conds[1], conds[2])
             auto_trust[f"{name}, emotion auto"] = {"windows": int(len(trust)), "trusted": int((trust >= 1).sum()),
                                                    "mean_trust": float(trust.mean())}
             sources[f"{name}, emotion auto"] = generate_from_conditions(
-                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), *conds[2:]], seeds)
+                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), auto_style(conds[2], perception),
+                          *conds[3:]], seeds)
         if gesture.config.hears_timing:  # the control: the stream of another window, all else its own
             other = other_window_pairs(windows.text, seed, 1)[0]
             sources[f"{name}, timing stream of another window"] = generate_from_conditions(

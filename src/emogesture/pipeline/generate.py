@@ -38,7 +38,7 @@ from emogesture.errors import EmogestureError, InputFileError
 from emogesture.models.speech import LATENT_PARTS
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
-from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perceive, perception_of
+from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, auto_style, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
@@ -281,14 +281,16 @@ class GesturePipeline:
     def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto"
                    ) -> list[np.ndarray]:
         """Condition latents ``[c, e, s]`` ``[W, 256]`` of encoded windows: ``emotion_mode`` ``auto``
-        blends untrusted emotion latents toward neutral (:mod:`emogesture.pipeline.perception`), ``own``
-        keeps them; then the edit, if any. A model that hears timing also gets the windows' own timing
+        blends untrusted emotion latents toward neutral and the style latents of an unfamiliar voice toward
+        the typical training style (:mod:`emogesture.pipeline.perception`), ``own`` keeps them; then the
+        edit, if any. A model that hears timing also gets the windows' own timing
         stream ``[W, 300, 2]`` (never the edit source's)."""
         if emotion_mode not in EMOTION_MODES:
             raise EmogestureError(f"emotion mode {emotion_mode!r}: choose one of {', '.join(EMOTION_MODES)}")
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
         if emotion_mode == "auto":
-            e = auto_emotion(e, s, perception_of(self.speech))
+            perception = perception_of(self.speech)
+            e, s = auto_emotion(e, s, perception), auto_style(s, perception)
         if edit is not None:
             n = len(c)
             target = None
