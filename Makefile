@@ -7,9 +7,10 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
-# ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH export
+# ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH export;
+# pocketsphinx-testdata holds real recorded speech for the real-speech checks
 DEMO_APT := ffmpeg
-TEST_APT := espeak-ng flite festival festvox-us-slt-hts ffmpeg blender
+TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender pocketsphinx-testdata
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo
 DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \

@@ -60,7 +60,9 @@ class PrepareConfig:
     eval_hop_seconds: float = 10.0  # between val/test windows (non-overlapping)
     fps: int = 30
     take_types: tuple[int, ...] = (0, 1)
-    split_source: str = "auto"  # "csv", "actor" or "auto" (csv when present, else actor)
+    #: "csv", "actor", "csv+actor" (held out by either: a take is test when its csv split or its actor is,
+    #: else val when either is; the synthetic corpus's csv splits by text) or "auto" (csv when present, else actor)
+    split_source: str = "auto"
     fbank: FbankConfig = field(default_factory=FbankConfig)
     features: MotionFeatureSpec = field(default_factory=MotionFeatureSpec)
 
@@ -124,7 +126,14 @@ def assign_splits(root: Path, takes: list[str], source: str) -> dict[str, str]:
         return {t: table.get(t, "additional") for t in takes}
     if source in ("actor", "auto"):
         return {t: actor_split(t) for t in takes}
-    raise EmogestureError(f"unknown split source {source!r} (use csv, actor or auto)")
+    if source == "csv+actor":
+        table = read_split_csv(csv_path)
+        out = {}
+        for t in takes:
+            both = (table.get(t, "additional"), actor_split(t))
+            out[t] = "additional" if both[0] == "additional" else next(s for s in ("test", "val", "train") if s in both)
+        return out
+    raise EmogestureError(f"unknown split source {source!r} (use csv, actor, csv+actor or auto)")
 
 
 def process_take(root: Path, take: str, config: PrepareConfig) -> dict[str, np.ndarray]:

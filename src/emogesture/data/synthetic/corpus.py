@@ -39,7 +39,9 @@ from emogesture.data.synthetic.takes import (
 from emogesture.data.synthetic.text import make_text
 from emogesture.errors import ConfigError, EmogestureError
 
-CORPUS_VERSION = 3  # 2: the hanging arm turns inwards at most MAX_ADDUCTION; 3: the lively generator (issue 17)
+#: 2: the hanging arm turns inwards at most MAX_ADDUCTION; 3: the lively generator; 4: one voice per BEAT
+#: speaker id (30 voices; two voice families only among the held-out actors; speakers 1-14 as before)
+CORPUS_VERSION = 4
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"

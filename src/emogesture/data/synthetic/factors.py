@@ -34,8 +34,11 @@ class Voice:
     native_pitch: bool = True
 
 
-#: Voices in speaker order, reused cyclically (with further pitch/timbre offsets) beyond the table;
-#: the first three speakers already cover all three engines.
+#: One voice per BEAT speaker id (1-30), reused cyclically (with further pitch/timbre offsets) beyond
+#: the table. The first three speakers already cover all three engines. Two voice families are never
+#: given to a speaker of the training actors (``ACTOR_SPLIT``'s val and test speakers only), so a split by
+#: speaker holds them out whole: festival's diphone voices (kal at 19, val; ked at 22, test) and espeak-ng's
+#: Klatt synthesiser (15 and 17, val; 23, 25, 28 and 29, test).
 VOICES: tuple[Voice, ...] = (
     Voice("flite", "rms", 103.0, 2.87, native_pitch=False),
     Voice("espeak-ng", "en-us+m3", 107.0, 3.30),
@@ -51,6 +54,22 @@ VOICES: tuple[Voice, ...] = (
     Voice("espeak-ng", "en-029+f3", 216.0, 3.30),
     Voice("espeak-ng", "en-us-nyc+m2", 101.0, 3.32),
     Voice("espeak-ng", "en-gb-x-gbclan+m5", 104.0, 3.22),
+    Voice("espeak-ng", "en-us+klatt", 104.0, 3.31),
+    Voice("espeak-ng", "en-us+Annie", 239.0, 3.37),
+    Voice("espeak-ng", "en-gb+klatt3", 103.0, 3.33),
+    Voice("espeak-ng", "en-gb-x-rp+adam", 103.0, 3.35),
+    Voice("festival", "kal_diphone", 99.0, 2.68, native_pitch=False),
+    Voice("espeak-ng", "en-gb-x-gbcwmd+belinda", 229.0, 3.33),
+    Voice("espeak-ng", "en+Andy", 97.0, 3.23),
+    Voice("festival", "ked_diphone", 99.0, 2.70, native_pitch=False),
+    Voice("espeak-ng", "en-us+klatt2", 106.0, 3.31),
+    Voice("espeak-ng", "en-gb-scotland+steph", 184.0, 3.46),
+    Voice("espeak-ng", "en-029+klatt4", 102.0, 3.38),
+    Voice("espeak-ng", "en-us+john", 103.0, 3.33),
+    Voice("espeak-ng", "en-us-nyc+linda", 229.0, 3.39),
+    Voice("espeak-ng", "en-gb-x-rp+klatt6", 103.0, 3.35),
+    Voice("espeak-ng", "en-us+klatt5", 102.0, 3.31),
+    Voice("espeak-ng", "en+max", 104.0, 3.33),
 )
 
 
@@ -138,8 +157,8 @@ assert tuple(EMOTION_FACTORS) == EMOTIONS
 
 @dataclass(frozen=True)
 class Speaker:
-    """One synthetic speaker: a voice with prosody offsets, a timbre (resampling factor, ≈1) and
-    a motion style (``handedness`` 'left'/'right'/'both', ``smoothness`` × stroke width,
+    """One synthetic speaker: a voice with prosody offsets, a timbre (resampling factor, ≈1, moving pitch
+    and formants together) and a motion style (``handedness`` 'left'/'right'/'both', ``smoothness`` × stroke width,
     ``finger_curl`` rad, ``betas`` the first 10 SMPL-X shape coefficients)."""
 
     speaker_id: int

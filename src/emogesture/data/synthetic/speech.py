@@ -2,10 +2,11 @@
 
 Prosody goes through each engine's own controls where it has them — flite
 ``--setf duration_stretch / int_f0_target_mean / int_f0_target_stddev``, espeak-ng ``-s -p`` and SSML
-``<prosody range>``, festival's HTS ``-r`` speed — and through resampling where it has not: a voice
+``<prosody range>``, festival's HTS ``-r`` speed and its diphone voices' ``Duration_Stretch`` — and through resampling where it has not: a voice
 without pitch control (flite rms, festival's HTS voice) is pitch-shifted by treating its samples as
 faster/slower (which also moves the formants), with the engine's rate compensated. The speaker's
-timbre is the same resampling trick (×0.9-1.1). Then, in numpy/scipy only: resample to 16 kHz
+timbre is the same resampling trick (×0.9-1.1). ``run_engine`` can also scale the formants alone (the
+same resampling, with the engine's pitch moved the other way where it can be). Then, in numpy/scipy only: resample to 16 kHz
 (``resample_poly``), spectral tilt (vocal effort), loudness normalised over voiced frames, the
 emotion/speaker gain, breathiness and tremolo, a soft limiter and a seeded noise floor at −66 dBFS. All engines are
 deterministic, so the same inputs give the same samples.
@@ -39,7 +40,8 @@ def check_engines(engines: tuple[str, ...]) -> None:
     if missing:
         raise EmogestureError(
             f"speech engine(s) not found: {', '.join(missing)}; install the Debian packages "
-            "(flite, espeak-ng, festival festvox-us-slt-hts — `make setup` does it) or choose other engines"
+            "(flite, espeak-ng, festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k — `make setup` does "
+            "it) or choose other engines"
         )
 
 
@@ -69,20 +71,27 @@ def _engine_command(voice: Voice, text_file: Path, wav: Path, rate: float, pitch
         return ["espeak-ng", "-m", "-v", voice.name, "-p", str(p), "-s", str(int(round(175 * rate))),
                 "-a", "100", "-f", str(text_file), "-w", str(wav)]
     if voice.engine == "festival":
-        params = f'(set! hts_engine_params (append hts_engine_params (list (list "-r" {rate:.4f}))))'
+        if voice.name.endswith("_diphone"):  # diphone voices stretch their durations
+            params = f"(Parameter.set 'Duration_Stretch {1.0 / rate:.4f})"
+        else:  # HTS voices take the engine's speed
+            params = f'(set! hts_engine_params (append hts_engine_params (list (list "-r" {rate:.4f}))))'
         return ["text2wave", "-eval", f"(voice_{voice.name})", "-eval", params, str(text_file), "-o", str(wav)]
     raise ValueError(f"unknown engine {voice.engine!r}")
 
 
-def run_engine(text: str, voice: Voice, prosody: Prosody, timbre: float, workdir: Path) -> np.ndarray:
+def run_engine(text: str, voice: Voice, prosody: Prosody, timbre: float, workdir: Path,
+               formant: float = 1.0) -> np.ndarray:
     """Synthesise ``text`` and return float64 mono audio at 16 kHz (before tilt, loudness, noise).
 
-    ``prosody.rate`` is relative to BASE_WORDS_PER_SECOND; ``prosody.pitch`` in semitones.
+    ``prosody.rate`` is relative to BASE_WORDS_PER_SECOND; ``prosody.pitch`` in semitones. ``formant``
+    scales the formants alone: the samples are resampled by it and, for a voice with native pitch
+    control, the engine's pitch is set that much lower so that the pitch stays (ignored otherwise).
     """
+    formant = formant if voice.native_pitch else 1.0
     shift = 1.0 if voice.native_pitch else 2.0 ** (prosody.pitch / 12.0)
-    factor = timbre * shift  # samples played this much faster: pitch × factor, duration / factor
+    factor = timbre * shift * formant  # samples played this much faster: pitch × factor, duration / factor
     rate = prosody.rate * (BASE_WORDS_PER_SECOND / voice.wps) / factor
-    native_pitch = prosody.pitch if voice.native_pitch else 0.0
+    native_pitch = prosody.pitch - 12.0 * np.log2(formant) if voice.native_pitch else 0.0
     text_file, wav = workdir / "text.txt", workdir / "speech.wav"
     if voice.engine == "espeak-ng":
         pct = int(round((prosody.pitch_range - 1.0) * 100))
