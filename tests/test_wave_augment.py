@@ -1,0 +1,82 @@
+"""Waveform augmentation: seeded, length-keeping, and each transform does what it says."""
+
+import numpy as np
+import pytest
+
+from emogesture.audio.wave_augment import (
+    TRANSFORMS,
+    WaveAugmentConfig,
+    add_noise,
+    augment_waveform,
+    codec_roundtrip,
+    telephone,
+    time_stretch,
+    voice_shift,
+)
+
+SR = 16000
+
+
+def _f0(x):
+    """Pitch of a steady tone by the autocorrelation's first peak (Hz)."""
+    ac = np.correlate(x[4000:8000], x[4000:8000], "full")[3999:]
+    k = SR // 500 + int(np.argmax(ac[SR // 500: SR // 60]))
+    return SR / k
+
+
+def _voice(seconds=2.0, f0=150.0):
+    """A vowel-like buzz: harmonics of f0 shaped by formants near 700 and 1200 Hz, pulsed into syllables."""
+    t = np.arange(int(seconds * SR)) / SR
+    x = sum(np.sin(2 * np.pi * k * f0 * t) * (np.exp(-((k * f0 - 700) / 200) ** 2) + np.exp(-((k * f0 - 1200) / 250) ** 2))
+            for k in range(1, 30))
+    return (0.3 * x / np.abs(x).max() * (0.5 + 0.5 * np.sin(2 * np.pi * 3 * t) ** 2)).astype(np.float64)
+
+
+def test_time_stretch_keeps_the_pitch_and_changes_the_length():
+    x = _voice()
+    fast = time_stretch(x, 1.25)
+    assert len(fast) == pytest.approx(len(x) / 1.25, abs=2)
+    assert _f0(fast) == pytest.approx(_f0(x), rel=0.03)
+
+
+def test_voice_shift_moves_the_pitch_and_keeps_the_length():
+    x = _voice()
+    up = voice_shift(x, 3.0)
+    assert len(up) == len(x)
+    assert _f0(up) / _f0(x) == pytest.approx(2 ** (3 / 12), rel=0.03)
+
+
+def test_noise_is_added_at_the_asked_snr_and_telephone_cuts_the_band():
+    x = _voice()
+    rng = np.random.default_rng(0)
+    for kind in ("white", "pink", "speech"):
+        noisy = add_noise(x, rng, 10.0, kind)
+        snr = 10 * np.log10(np.mean(x ** 2) / np.mean((noisy - x) ** 2))
+        assert snr == pytest.approx(10.0, abs=0.01)
+    wide = x + 0.1 * np.sin(2 * np.pi * 6000 * np.arange(len(x)) / SR)
+    spec = np.abs(np.fft.rfft(telephone(wide)))
+    f = np.fft.rfftfreq(len(x), 1 / SR)
+    assert spec[(f > 5500) & (f < 6500)].max() < 0.01 * spec[(f > 500) & (f < 1500)].max()
+
+
+def test_codec_roundtrip_keeps_the_speech():
+    x = _voice(1.0)
+    y = codec_roundtrip(x, "mp3", 16)
+    assert len(y) == len(x)
+    assert np.corrcoef(np.abs(np.fft.rfft(x)), np.abs(np.fft.rfft(y)))[0, 1] > 0.9
+
+
+def test_the_seed_decides_and_every_transform_can_apply():
+    x = _voice()
+    a, how_a = augment_waveform(x, np.random.default_rng(7))
+    b, how_b = augment_waveform(x, np.random.default_rng(7))
+    assert how_a == how_b and np.array_equal(a, b) and len(a) == len(x) and a.dtype == np.float32
+    c, _ = augment_waveform(x, np.random.default_rng(8))
+    assert not np.array_equal(a, c)
+    all_on = WaveAugmentConfig(**{name: 1.0 for name in TRANSFORMS})
+    y, how = augment_waveform(x, np.random.default_rng(1), all_on)
+    assert len(how) == len(TRANSFORMS) and np.abs(y).max() <= 0.99 and np.isfinite(y).all()
+    none, how = augment_waveform(x, np.random.default_rng(1), WaveAugmentConfig(**{name: 0.0 for name in TRANSFORMS}))
+    assert how == [] and np.allclose(none, x, atol=1e-6)
+    with pytest.raises(ValueError, match="probability"):
+        augment_waveform(x, np.random.default_rng(1), WaveAugmentConfig(noise=1.5))
