@@ -9,7 +9,8 @@
 #   4. the speech model's emotion perception (class means on train, trust threshold on val);
 #   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS; the gesture model with
 #      the tiny preset's current generation settings ($GENERATION in common.sh), however old its run;
-#   6. the bundle scored on the test texts (speech and gesture reports, --emotion auto vs own), and
+#   6. the bundle scored on the test texts (speech and gesture reports, --emotion auto vs own, real
+#      recorded speech against the test takes of the same emotion: `evaluate real`), and
 #      the model card written from those numbers; then the bundle is copied into the package.
 # Usage: experiments/bundled_model.sh
 set -euo pipefail
@@ -58,6 +59,7 @@ $EG evaluate speech "$BUNDLE/speech.json" --data "$CACHE" --split test --out "$R
 $EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split test --out "$REPORT/gesture" \
     --overwrite --model "ours=$BUNDLE/gesture.json"
 .venv/bin/python experiments/perception_shift.py "$BUNDLE/speech.json" "$CACHE" "$REPORT"
+$EG evaluate real --data "$CACHE" --model "$BUNDLE/gesture.json" --out "$REPORT/real" --overwrite
 cp "$RUN/times.txt" "$REPORT/training_time.txt"
 .venv/bin/python experiments/model_card.py "$BUNDLE" "$REPORT" "$RUN/times.txt"
 ASSETS=src/emogesture/assets/model
