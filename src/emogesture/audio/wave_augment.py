@@ -181,8 +181,8 @@ def augment_waveform(x: np.ndarray, rng: np.random.Generator, config: WaveAugmen
         applied.append(f"tempo x{rate:.2f}")
     if on["reverb"]:
         rt60, wet = rng.uniform(0.15, 0.9), rng.uniform(0.2, 0.8)
-        h = room_impulse(rng, rt60)
-        y = (1 - wet) * y + wet * fftconvolve(y, h)[:n] * np.sqrt(np.mean(y ** 2) / (np.mean(fftconvolve(y, h)[:n] ** 2) + 1e-12))
+        room = fftconvolve(y, room_impulse(rng, rt60))[:n]
+        y = (1 - wet) * y + wet * room * np.sqrt(np.mean(y ** 2) / (np.mean(room ** 2) + 1e-12))  # same power
         applied.append(f"reverb rt60 {rt60:.2f} s")
     if on["microphone"]:
         y = microphone(y, rng)
