@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, fftconvolve, lfilter, resample_poly, sosfilt
 
-SAMPLE_RATE = 16000
+from emogesture.audio.io import TARGET_SAMPLE_RATE as SAMPLE_RATE
+
 TRANSFORMS = ("voice", "tempo", "reverb", "noise", "telephone", "codec", "loudness", "microphone")
 
 

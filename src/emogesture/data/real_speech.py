@@ -19,12 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from emogesture.audio import load_audio
+from emogesture.audio import TARGET_SAMPLE_RATE as SAMPLE_RATE, load_audio
 from emogesture.errors import EmogestureError, InputFileError
 
 #: Where Debian's ``pocketsphinx-testdata`` puts its recordings.
 POCKETSPHINX_TESTDATA = Path("/usr/share/pocketsphinx/test/data")
-SAMPLE_RATE = 16000
 GAP_SECONDS = 0.3
 
 
