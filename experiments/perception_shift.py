@@ -1,14 +1,16 @@
 """What the speech model's emotion perception does on voices unlike its training voices.
 
-No real speech can be used here, so the held-out (test-text) takes of the synthetic corpus are played
-through changes that move a voice away from the training voices: a pitch and tempo shift (+4 and
--4 semitones, by resampling), babble-free white noise at 10 dB SNR, a telephone band (300-3400 Hz),
-and pink noise alone (no speech at all). For each, over every 10-s window: how often the perceived
-emotion is the take's emotion, the median distance to the nearest emotion mean (in units of the
-trust threshold), the same for the voice (style latent to the nearest training speaker), and the
+The held-out takes of the synthetic corpus — those of the voices the speech model never heard when the
+cache splits by speaker (``prepare --set split_source=csv+actor``), else every take of the split — are
+played through changes that move a voice away from the training voices: pitch (and formants) ±4
+semitones with the tempo kept, tempo ±15 % with the pitch kept, white noise at 10 dB SNR, a telephone
+band, a reverberant room (RT60 0.5 s), and pink noise alone (no speech at all). The changes are those of
+:mod:`emogesture.audio.wave_augment`, with fixed settings. For each, over every 10-s window: how often the
+perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
+the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
 share of windows that `generate --emotion auto` blends toward neutral.
 
-Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR
+Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT]
 """
 
 from __future__ import annotations
@@ -18,29 +20,20 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import butter, resample_poly, sosfilt
+from scipy.signal import fftconvolve
 
 from emogesture.audio import load_audio
+from emogesture.audio.wave_augment import add_noise, room_impulse, telephone, time_stretch, voice_shift
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 
-def pitch(wave: np.ndarray, semitones: int) -> np.ndarray:
-    """Pitch and tempo together, as a tape played faster or slower."""
-    up, down = (4, 5) if semitones > 0 else (5, 4)  # ~ +-3.9 semitones
-    return resample_poly(wave, up, down).astype(np.float32)
-
-
-def noise(wave: np.ndarray, snr_db: float, rng: np.random.Generator) -> np.ndarray:
-    n = rng.normal(size=len(wave))
-    n *= np.sqrt(np.mean(wave ** 2) / np.mean(n ** 2) / 10 ** (snr_db / 10))
-    return (wave + n).astype(np.float32)
-
-
-def telephone(wave: np.ndarray) -> np.ndarray:
-    return sosfilt(butter(6, [300, 3400], btype="band", fs=16000, output="sos"), wave).astype(np.float32)
+def reverberant(wave: np.ndarray, rng: np.random.Generator, rt60: float = 0.5) -> np.ndarray:
+    """The take in a room: half direct sound, half reverberation of the same power."""
+    room = fftconvolve(wave, room_impulse(rng, rt60))[: len(wave)]
+    return 0.5 * wave + 0.5 * room * np.sqrt(np.mean(wave ** 2) / np.mean(room ** 2))
 
 
 def pink(length: int, rng: np.random.Generator) -> np.ndarray:
@@ -50,21 +43,27 @@ def pink(length: int, rng: np.random.Generator) -> np.ndarray:
     return (0.05 * out / out.std()).astype(np.float32)
 
 
-def main(speech_model: str, cache_dir: str, out_dir: str) -> None:
+def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -> None:
     encoder = SpeechLatentEncoder.from_run(speech_model)
     perception = perception_of(encoder)
     cache = open_cache(cache_dir)
-    test = cache.split("test")
+    test = cache.split(split)
     root = Path(cache.manifest["root"])
-    takes = list(dict.fromkeys(test.takes))
+    unheard = {t for t, s in zip(test.takes, test.speaker_id.tolist()) if s not in encoder.speakers}
+    takes = [t for t in dict.fromkeys(test.takes) if t in unheard or not unheard]
+    which = "held-out voices" if unheard else "held-out texts"
     emotion_of = {t: int(e) for t, e in zip(test.takes, test.emotion)}
     rng = np.random.default_rng(0)
+    f32 = np.float32
     variants = {
-        "held-out texts, as recorded": lambda w: w,
-        "pitch and tempo +4 semitones": lambda w: pitch(w, 4),
-        "pitch and tempo -4 semitones": lambda w: pitch(w, -4),
-        "white noise, 10 dB SNR": lambda w: noise(w, 10, rng),
-        "telephone band 300-3400 Hz": telephone,
+        f"{which}, as recorded": lambda w: w,
+        "pitch +4 semitones": lambda w: voice_shift(w, 4.0).astype(f32),
+        "pitch -4 semitones": lambda w: voice_shift(w, -4.0).astype(f32),
+        "tempo +15 %": lambda w: time_stretch(w, 1.15).astype(f32),
+        "tempo -15 %": lambda w: time_stretch(w, 1 / 1.15).astype(f32),
+        "white noise, 10 dB SNR": lambda w: add_noise(w, rng, 10.0, "white").astype(f32),
+        "telephone band 300-3400 Hz": lambda w: telephone(w).astype(f32),
+        "reverberant room, RT60 0.5 s": lambda w: reverberant(w, rng).astype(f32),
         "pink noise, no speech": lambda w: pink(len(w), rng),
     }
     rows = {}
@@ -88,11 +87,11 @@ def main(speech_model: str, cache_dir: str, out_dir: str) -> None:
                       "perceived_emotions": counts}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    result = {"split": "test", "takes": len(takes), "thresholds": {"emotion": perception.emotion.threshold,
+    result = {"split": split, "takes": len(takes), "held_out": which, "thresholds": {"emotion": perception.emotion.threshold,
               "voice": perception.voice.threshold}, "threshold_info": perception.info, "rows": rows}
     (out / "perception_shift.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = ["# Emotion perception on voices unlike the training voices", "",
-             f"{len(takes)} held-out takes (test texts) of the default corpus, every 10-s window. Emotion distance: "
+             f"{len(takes)} takes of the {split} split ({which}), every 10-s window. Emotion distance: "
              "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
              "latent's to the nearest training speaker; each over its trust threshold (the "
              f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows).", "",
@@ -110,4 +109,4 @@ def main(speech_model: str, cache_dir: str, out_dir: str) -> None:
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import torch
 
 from emogesture.audio.wave_augment import (
     TRANSFORMS,
@@ -80,3 +81,32 @@ def test_the_seed_decides_and_every_transform_can_apply():
     assert how == [] and np.allclose(none, x, atol=1e-6)
     with pytest.raises(ValueError, match="probability"):
         augment_waveform(x, np.random.default_rng(1), WaveAugmentConfig(noise=1.5))
+
+
+def test_training_windows_heard_through_augmented_conditions(tmp_path):
+    """The augmenter re-cuts the cache's own windows from the waveforms (nothing applied: the same window),
+    and the quadruple dataset hands the encoders augmented windows with the clean ones as the target."""
+    from emogesture.data.cache import open_cache
+    from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
+    from emogesture.data.prepare import prepare
+
+    from helpers import make_root
+
+    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    cache = open_cache(tmp_path / "cache")
+    train = cache.split("train")
+    off = WaveWindowAugmenter(cache, train, WaveAugmentConfig(**{name: 0.0 for name in TRANSFORMS}))
+    for j in (0, len(train) - 1):
+        again = off(j, np.random.default_rng(0))
+        assert again.shape == train.fbank[j].shape
+        assert np.abs(again - np.asarray(train.fbank[j], np.float32)).max() < 0.02  # float16 in the cache
+    on = WaveWindowAugmenter(cache, train, WaveAugmentConfig(noise=1.0, reverb=1.0))
+    data = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=on, augment_share=1.0)
+    a, b = data[0], data[0]
+    assert torch.equal(a["inputs"], b["inputs"])  # the seed decides
+    assert not torch.allclose(a["inputs"], a["fbank"], atol=0.05)
+    plain = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3)[0]
+    assert torch.equal(plain["fbank"], a["fbank"]) and "inputs" not in plain  # the same quadruple, clean target
+    with pytest.raises(ValueError, match="augment_share"):
+        SpeechQuadrupleDataset(train, [1, 2], 4, augmenter=on, augment_share=1.5)

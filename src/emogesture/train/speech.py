@@ -11,11 +11,12 @@ import torch
 from torch.utils.data import DataLoader
 
 from emogesture.audio import augment_fbank, scramble_segments
+from emogesture.audio.wave_augment import WaveAugmentConfig
 from emogesture.checkpoints import save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import SpeechQuadrupleDataset
+from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
 from emogesture.errors import ConfigError
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
@@ -43,6 +44,12 @@ class SpeechTrainConfig:
     emotion_scramble: int = 0
     #: Share of the windows that get the scramble (the others keep their word order, as at inference).
     emotion_scramble_share: float = 0.5
+    #: Share of the training windows the encoders hear through augmented recording conditions (room,
+    #: noise, microphone, telephone, codec, voice shift, tempo: :mod:`emogesture.audio.wave_augment`, drawn
+    #: per window from the item's seeded generator); the reconstruction target stays the clean window.
+    #: The waveforms are read from the corpus the cache was prepared from. 0 = off.
+    wave_augment: float = 0.0
+    wave: WaveAugmentConfig = field(default_factory=WaveAugmentConfig)
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -69,7 +76,8 @@ class SpeechTrainConfig:
 
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
-                 splits: Sequence[str] = ("train",)):
+                 splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
+                 wave: WaveAugmentConfig | None = None):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -77,7 +85,9 @@ class SpeechDataModule(L.LightningDataModule):
         self.train = concat_splits(self.cache, splits)
         self.speakers = sorted(set(self.train.speaker_id.tolist()))
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
-        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed)
+        augmenter = WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig()) if wave_augment > 0 else None
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, augmenter,
+                                              wave_augment)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
@@ -110,11 +120,11 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
 
     def training_step(self, batch: dict, batch_idx: int) -> torch.Tensor:
         fbank = batch["fbank"]
-        inputs = fbank
+        inputs = batch.get("inputs", fbank)  # the windows as heard (wave_augment), the clean ones the target
         if self.cfg.augment:
             g = step_generator(self.seed, self.global_step, self.global_rank)
             b, k, t, f = fbank.shape
-            inputs = augment_fbank(fbank.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
+            inputs = augment_fbank(inputs.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
                                    self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
         emotion_inputs = None
         if self.cfg.emotion_scramble > 0:
@@ -160,8 +170,14 @@ def speech_model_extra(cache, speakers: list[int], step: int, train_splits: list
 
 def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     """Data module, Lightning module and export function of one run."""
+    if not 0.0 <= config.wave_augment <= 1.0:
+        raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
+    try:
+        config.wave.validate()
+    except ValueError as err:
+        raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits)
+                            config.train_splits, config.wave_augment, config.wave)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
