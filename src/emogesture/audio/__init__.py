@@ -37,7 +37,9 @@ from emogesture.audio.windows import (
     denormalise_fbank,
     fbank_window,
     fbank_windows,
+    RECORDING_NORMS,
     normalise_fbank,
+    normalise_recording,
     seconds_to_fbank_frame,
     window_starts,
 )
@@ -58,6 +60,8 @@ __all__ = [
     "scramble_segments",
     "check_speech",
     "denormalise_fbank",
+    "normalise_recording",
+    "RECORDING_NORMS",
     "detect_onsets",
     "window_activity",
     "fbank_window",

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from emogesture.audio.fbank import FbankConfig, num_fbank_frames
+from emogesture.audio.fbank import FLOAT32_EPS, FbankConfig, num_fbank_frames
 
 __all__ = [
     "FBANK_MEAN",
@@ -25,6 +25,8 @@ __all__ = [
     "FBANK_FRAMES_PER_SECOND",
     "WINDOW_CONTENT_FRAMES",
     "normalise_fbank",
+    "normalise_recording",
+    "RECORDING_NORMS",
     "denormalise_fbank",
     "fbank_window",
     "fbank_windows",
@@ -45,6 +47,49 @@ Array = np.ndarray | torch.Tensor
 def normalise_fbank(x: Array, mean: float = FBANK_MEAN, std: float = FBANK_STD) -> Array:
     """``(x - mean) / (2 * std)`` (AST's convention); same type as ``x``."""
     return (x - mean) / (2.0 * std)
+
+
+RECORDING_NORMS = ("none", "level", "spectrum")
+LOG_FLOOR = math.log(FLOAT32_EPS)  # Kaldi's floor of the mel energies (FbankConfig.log_floor)
+ACTIVE_GATE_DB = 30.0  # frames this far below the recording's loud frames (95th percentile) are pauses
+
+
+def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB,
+                        log_floor: float = LOG_FLOOR) -> Array:
+    """One recording's raw log-mel fbank ``[F, n_mels]`` measured against the recording itself.
+
+    A microphone's gain, distance and colouring say nothing about the speaker's emotion, but they move
+    every log-mel bin. ``mode``:
+
+    - ``"none"``: unchanged;
+    - ``"level"``: the log of the active frames' mean mel power is subtracted (one number: the
+      recording's speech level, as a gain would move it; bins at the log floor hardly count);
+    - ``"spectrum"``: each bin's mean over the active frames is subtracted (the recording's long-term
+      spectrum: level, channel and the voice's average colour; cepstral mean normalisation in the mel domain).
+
+    Active frames: mean log-mel within ``gate_db`` of the 95th percentile over the recording, so pauses
+    and silence do not count. Values at Kaldi's log floor (``log_floor``: a mel filter with no energy,
+    digital silence), which no gain moves, stay where they are. Returns the same type as ``fbank``.
+    """
+    if mode not in RECORDING_NORMS:
+        raise ValueError(f"recording normalisation {mode!r}: use one of {', '.join(RECORDING_NORMS)}")
+    if mode == "none" or len(fbank) == 0:
+        return fbank
+    x = fbank.detach().cpu().numpy() if isinstance(fbank, torch.Tensor) else np.asarray(fbank)
+    x = x.astype(np.float64)
+    loudness = x.mean(1)
+    gate = np.percentile(loudness, 95) - gate_db * math.log(10.0) / 10.0  # dB of power -> natural-log units
+    active = x[loudness >= gate]
+    if mode == "level":
+        top = active.max()
+        offset = top + math.log(float(np.exp(active - top).mean()))
+    else:
+        offset = active.mean(0)
+    floor = x <= log_floor + 1e-4
+    out = np.where(floor, x, x - offset)
+    if isinstance(fbank, torch.Tensor):
+        return torch.as_tensor(out, dtype=fbank.dtype, device=fbank.device)
+    return out.astype(fbank.dtype)
 
 
 def denormalise_fbank(x: Array, mean: float = FBANK_MEAN, std: float = FBANK_STD) -> Array:

@@ -6,7 +6,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from emogesture.audio import FbankConfig, fbank_window, kaldi_fbank, load_audio, normalise_fbank
+from emogesture.audio import FbankConfig, fbank_window, kaldi_fbank, load_audio, normalise_fbank, normalise_recording
 from emogesture.audio.wave_augment import WaveAugmentConfig, augment_waveform
 from emogesture.config import from_dict
 from emogesture.data.cache import SplitWindows, WindowsCache
@@ -18,9 +18,11 @@ class WaveWindowAugmenter:
 
     Holds the waveforms of the takes behind a split's windows (read once from the corpus the cache was
     prepared from) and turns window ``j`` into its fbank window again after augmenting the waveform:
-    cut where the cache's window starts, augmented, filterbank, normalised with the cache's statistics,
+    cut where the cache's window starts, augmented, filterbank, measured against itself as the cache's
+    takes were (``recording_norm``; the window stands for its recording), normalised with the cache's statistics,
     as many frames as the cache's windows. Without augmentation (a config of all zeros) it gives the
-    cache's own window back to float16 rounding.
+    cache's own window back to float16 rounding (with ``recording_norm`` ``none``; otherwise the window is
+    measured against itself, the take's window against the whole take).
     """
 
     def __init__(self, cache: WindowsCache, windows: SplitWindows, config: WaveAugmentConfig) -> None:
@@ -30,6 +32,7 @@ class WaveWindowAugmenter:
         self.windows, self.config = windows, config
         prepared = cache.manifest["config"]
         self.fbank_config = from_dict(FbankConfig, prepared["fbank"]) if "fbank" in prepared else FbankConfig()
+        self.recording_norm = prepared.get("recording_norm", "none")
         self.mean, self.std = float(cache.stats["fbank_mean"]), float(cache.stats["fbank_std"])
         self.frames = int(windows.fbank.shape[1])
         root = Path(cache.manifest["root"])
@@ -42,7 +45,7 @@ class WaveWindowAugmenter:
         start = first * c.frame_shift
         wave = self.waves[self.windows.takes[j]][start: start + (self.frames - 1) * c.frame_shift + c.frame_length]
         wave, _ = augment_waveform(wave, rng, self.config)
-        fb = normalise_fbank(kaldi_fbank(wave, c), self.mean, self.std)
+        fb = normalise_fbank(normalise_recording(kaldi_fbank(wave, c), self.recording_norm), self.mean, self.std)
         return fbank_window(fb, 0, self.frames).numpy()
 
 

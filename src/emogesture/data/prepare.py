@@ -35,7 +35,7 @@ from tqdm.auto import tqdm
 
 from emogesture import __version__
 from emogesture.config import to_dict
-from emogesture.audio import FbankConfig, kaldi_fbank, load_audio
+from emogesture.audio import RECORDING_NORMS, FbankConfig, kaldi_fbank, load_audio, normalise_recording
 from emogesture.data.beat import SPLITS, actor_split, parse_take_name, read_sem, read_split_csv, sem_frame_scores
 from emogesture.data.cache import CACHE_VERSION, WINDOW_COLUMNS
 from emogesture.errors import EmogestureError, InputFileError
@@ -64,13 +64,20 @@ class PrepareConfig:
     #: else val when either is; the synthetic corpus's csv splits by text) or "auto" (csv when present, else actor)
     split_source: str = "auto"
     fbank: FbankConfig = field(default_factory=FbankConfig)
+    #: each take's fbank measured against the take itself before the statistics (``none``, ``level`` or
+    #: ``spectrum``: :func:`emogesture.audio.normalise_recording`); a speech model trained on the cache
+    #: does the same to every recording it hears
+    recording_norm: str = "none"
     features: MotionFeatureSpec = field(default_factory=MotionFeatureSpec)
 
     def to_dict(self) -> dict:
         return to_dict(self)
 
     def digest(self) -> str:
-        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True).encode()).hexdigest()[:16]
+        d = self.to_dict()
+        if d["recording_norm"] == "none":  # caches prepared before the setting existed keep their digest
+            del d["recording_norm"]
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -137,9 +144,9 @@ def assign_splits(root: Path, takes: list[str], source: str) -> dict[str, str]:
 
 
 def process_take(root: Path, take: str, config: PrepareConfig) -> dict[str, np.ndarray]:
-    """One take -> ``fbank [F, n_mels]`` (raw log-mel), ``motion [T, D]``, ``sem [T]``."""
+    """One take -> ``fbank [F, n_mels]`` (log-mel, measured against the take as ``config.recording_norm`` says), ``motion [T, D]``, ``sem [T]``."""
     wave, sr = load_audio(root / "wave16k" / f"{take}.wav", target_sr=config.fbank.sample_rate)
-    fbank = kaldi_fbank(wave, config.fbank).numpy().astype(np.float32)
+    fbank = normalise_recording(kaldi_fbank(wave, config.fbank).numpy(), config.recording_norm).astype(np.float32)
     seq = load_smplx_npz(root / "smplxflame_30" / f"{take}.npz")
     if abs(seq.fps - config.fps) > 1e-3:
         raise InputFileError(root / "smplxflame_30" / f"{take}.npz", f"frame rate {seq.fps} is not {config.fps}")
@@ -281,6 +288,8 @@ def prepare(
     t0 = time.monotonic()
     root, out = Path(root), Path(out)
     config = config or PrepareConfig()
+    if config.recording_norm not in RECORDING_NORMS:
+        raise EmogestureError(f"recording_norm {config.recording_norm!r}: use one of {', '.join(RECORDING_NORMS)}")
     if not root.is_dir():
         raise InputFileError(root, "data root not found")
     out.mkdir(parents=True, exist_ok=True)

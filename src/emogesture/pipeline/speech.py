@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank, window_starts
+from emogesture.audio import FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank, normalise_recording, window_starts
 from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
@@ -64,6 +64,7 @@ class SpeechLatentEncoder:
         self.fbank_std = float(loaded.extra["fbank_std"])
         prep = loaded.extra.get("prepare_config", {})
         self.fbank_config = from_dict(FbankConfig, prep["fbank"]) if "fbank" in prep else FbankConfig()
+        self.recording_norm = prep.get("recording_norm", "none")
         self.window_frames = loaded.config.encoder.input_frames
 
     @classmethod
@@ -135,7 +136,7 @@ class SpeechLatentEncoder:
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         with maybe_stage(times, "fbank"):
-            fb = kaldi_fbank(waveform, self.fbank_config)
+            fb = normalise_recording(kaldi_fbank(waveform, self.fbank_config), self.recording_norm)
             fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
             starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
             frames = [int(round(s * FBANK_RATE)) for s in starts]
