@@ -96,3 +96,90 @@ def test_gesture_space_reads_the_body_frame():
     assert np.allclose(wrist_distance(joints), wrist_distance(_pose(front)[1]), atol=1e-5)
     half = np.concatenate([down, front])
     assert motion_statistics([_pose(half)])["hand_in_front_share"] == pytest.approx(0.5)
+
+
+def test_fingers_body_turn_and_hand_height_have_known_answers():
+    from emogesture.eval.motion_stats import FINGER_JOINTS, root_turn_deg, torso_yaw_pitch_deg
+
+    t = np.arange(90)
+    poses = np.zeros((90, 55, 3))
+    poses[:, list(FINGER_JOINTS["left"]), 2] = np.radians(20.0)  # every left finger joint curled by 20 degrees
+    r = motion_statistics([_pose(poses)])
+    assert r["finger_curl_left_deg"] == pytest.approx(20.0) and r["finger_curl_right_deg"] == 0.0
+    assert r["finger_curl_deg"] == pytest.approx(10.0) and r["finger_change_deg"] == pytest.approx(0.0, abs=1e-9)
+    assert r["root_turn_deg"] == pytest.approx(0.0, abs=1e-5) and r["onset_coupling"] is None
+    moving = poses.copy()
+    moving[:, list(FINGER_JOINTS["right"]), 2] = np.radians(30.0) * (t % 30 < 15)[:, None]  # a fist that opens
+    assert motion_statistics([_pose(moving)])["finger_change_deg"] == pytest.approx(15.0 / 2, abs=0.5)
+
+    turning = np.zeros((90, 55, 3))
+    turning[:, J["pelvis"], 1] = 0.5 + np.radians(6.0) * np.sin(2 * np.pi * t / 45)  # turned, swaying ±6 degrees
+    assert root_turn_deg(turning) == pytest.approx(6.0 / np.sqrt(2), rel=0.02)
+    yaw, pitch = torso_yaw_pitch_deg(turning)
+    assert yaw.std() == pytest.approx(6.0 / np.sqrt(2), rel=0.02) and pitch.std() == pytest.approx(0.0, abs=1e-6)
+    twist = np.zeros((90, 55, 3))
+    twist[:, J["spine2"], 1] = np.radians(5.0) * np.sin(2 * np.pi * t / 45)  # the chest turns, the root does not
+    twist[:, J["spine1"], 0] = np.radians(8.0) * np.sin(2 * np.pi * t / 30)  # and leans forward and back
+    twist[:, J["left_shoulder"], 1] = np.sin(t)  # the arms move: not the chest
+    r = motion_statistics([_pose(twist)])
+    assert r["root_turn_deg"] == pytest.approx(0.0, abs=1e-5)
+    assert r["torso_yaw_std_deg"] == pytest.approx(5.0 / np.sqrt(2), rel=0.05)
+    assert r["torso_pitch_std_deg"] == pytest.approx(8.0 / np.sqrt(2), rel=0.05)
+
+    down = np.zeros((30, 55, 3))
+    down[:, J["left_shoulder"], 2] = -1.3
+    down[:, J["right_shoulder"], 2] = 1.3
+    together = down.copy()
+    together[:, J["left_shoulder"], 1] = -0.9  # both arms brought forward and in
+    together[:, J["right_shoulder"], 1] = 0.9
+    together[:, J["left_elbow"], 1] = -1.2
+    together[:, J["right_elbow"], 1] = 1.2
+    a, b = motion_statistics([_pose(down)]), motion_statistics([_pose(together)])
+    assert a["hands_together_share"] == 0.0 and b["hands_together_share"] == 1.0
+    assert a["wrist_height_median"] < 0.0 < b["wrist_height_median"]  # hanging below the pelvis / raised
+    assert a["wrist_height_p10"] <= a["wrist_height_median"] <= a["wrist_height_p90"]
+
+
+def test_onset_coupling_follows_the_strokes(tmp_path):
+    """Arms that move on the speech's onsets couple far more than the same motion moved 0.6 s late."""
+    from emogesture.eval.motion_stats import file_statistics, onset_coupling, speech_of
+
+    rng = np.random.default_rng(0)
+    fps, sr, seconds = 30.0, 16000, 12
+    onsets = np.sort(rng.choice(np.arange(1, seconds - 1, 0.25), 18, replace=False))
+    wave = 0.002 * rng.normal(size=seconds * sr)
+    for o in onsets:  # a 150-ms vowel-like burst at each onset
+        n = np.arange(int(0.15 * sr))
+        wave[int(o * sr): int(o * sr) + len(n)] += 0.3 * np.sin(2 * np.pi * 200 * n / sr) * np.hanning(len(n))
+    frames = np.arange(int(seconds * fps)) / fps
+
+    def strokes(delay: float) -> np.ndarray:
+        lift = sum(np.exp(-0.5 * ((frames - o - delay) / 0.08) ** 2) for o in onsets)
+        poses = np.zeros((len(frames), 55, 3))
+        poses[:, J["right_shoulder"], 2] = 1.3
+        poses[:, J["right_elbow"], 1] = 0.8 * lift
+        return poses
+
+    on = _pose(strokes(0.05))[1]
+    late = _pose(strokes(0.6))[1]
+    c_on, c_late = onset_coupling(on, wave, sr, fps), onset_coupling(late, wave, sr, fps)
+    assert c_on > 0.4 and c_late < c_on - 0.3
+    r = motion_statistics([(*_pose(strokes(0.05))[:2], fps, (wave, sr)), _pose(strokes(0.6))])
+    assert r["onset_coupling"] == pytest.approx(c_on) and r["sequences_with_audio"] == 1
+
+    import soundfile as sf
+
+    from emogesture.motion.io import save_smplx_npz
+    from emogesture.types import SMPLXSequence
+
+    (tmp_path / "smplxflame_30").mkdir()
+    (tmp_path / "wave16k").mkdir()
+    seq = SMPLXSequence(poses=strokes(0.05).astype(np.float32), trans=np.zeros((len(frames), 3), np.float32),
+                        betas=np.zeros(10, np.float32), expressions=np.zeros((len(frames), 0), np.float32), fps=fps)
+    save_smplx_npz(seq, tmp_path / "smplxflame_30" / "a.npz")
+    save_smplx_npz(seq, tmp_path / "smplxflame_30" / "b.npz")
+    sf.write(tmp_path / "wave16k" / "a.wav", wave.astype(np.float32), sr)
+    assert speech_of(tmp_path / "smplxflame_30" / "a.npz") == tmp_path / "wave16k" / "a.wav"
+    assert speech_of(tmp_path / "smplxflame_30" / "b.npz") is None
+    r = file_statistics(sorted((tmp_path / "smplxflame_30").glob("*.npz")))
+    assert r["sequences_with_audio"] == 1 and r["onset_coupling"] == pytest.approx(c_on, abs=0.02)

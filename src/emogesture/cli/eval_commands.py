@@ -50,11 +50,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
     p.set_defaults(func=run_evaluate_real)
 
-    p = sub.add_parser("motion-stats", help="how lively motion is: joint angular speed, hand speed and posture",
+    p = sub.add_parser("motion-stats", help="how lively and how human motion is: joint speeds, hands, posture, "
+                       "fingers, body turn, onset coupling",
                        description="Statistics of SMPL-X motion (BEAT2 npz): per-joint angular speed, wrist speed "
                        "(mean, 95th percentile), and the share of frames with a wrist below the pelvis, an elbow "
                        "opened beyond 150 degrees, a wrist slower than 0.05 m/s, a hand at least 0.15 m in front "
-                       "of the chest (the body's own frame), and the wrists' median distance. One column per SOURCE.")
+                       "of the chest (the body's own frame), the wrists' median distance, their height above the "
+                       "pelvis and the share of frames with the hands together; finger curl and how the hand shape "
+                       "changes; the body's turn (the root's rotation about its mean) and the chest's yaw and pitch; "
+                       "and, for files with their speech (NAME.wav beside NAME.npz, or a BEAT2 root's wave16k/), "
+                       "how tightly arm speed follows the speech's onsets. One column per SOURCE.")
     p.add_argument("sources", nargs="+", metavar="[NAME=]SOURCE",
                    help="a BEAT2 root, a folder of .npz files or one .npz file (loose .npz files form one column)")
     p.add_argument("--every", type=int, default=1, help="use every N-th file of each source (default 1)")

@@ -15,7 +15,21 @@ be held against each other and against real conversational motion (issue 17's ta
   wrist at least ``front_m`` ahead of the shoulders' midpoint (a hand in front of the chest; both hands
   pooled) and the median distance between the wrists. Real conversational motion capture keeps a hand
   in front in about half its frames, with the wrists about half a metre apart; arms hanging out to the
-  sides read low on the first and high on the second.
+  sides read low on the first and high on the second. Also the wrists' height above the pelvis along the
+  body's up axis (10th, 50th and 90th percentile) and the share of frames with the wrists closer than
+  ``together_m`` (hands together).
+- **Hands**: finger curl, the mean rotation angle of the 30 finger joints (15 per hand; 0 = a flat hand
+  as SMPL-X rests it), per hand, and how much the hand shape changes: each finger joint's angle's
+  standard deviation over a sequence, averaged.
+- **Body turn and lean**: the root's (global orient's) rotation about its mean over a sequence, as the
+  root-mean-square geodesic angle, degrees; and the chest's facing (spine3's global rotation) apart as
+  yaw (about the world's up axis, y) and pitch (leaning forward and back), each a standard deviation
+  over the sequence, degrees. A person talking turns and leans by a few degrees.
+- **Onset coupling**, for sequences with their audio: the best Pearson correlation, within
+  ``coupling_lag_s``, between the arm joints' mean speed and the speech's onset envelope (the positive
+  spectral flux of a log-mel spectrogram, read at the motion frames), both smoothed alike
+  (:mod:`emogesture.eval.rhythm`'s functions, over the whole sequence). Real conversational motion
+  capture couples weakly (about 0.05); arms that tick on every syllable couple several times more.
 """
 
 from __future__ import annotations
@@ -29,6 +43,7 @@ import numpy as np
 import torch
 
 from emogesture.errors import InputFileError
+from emogesture.eval.rhythm import arm_speed, envelope_at_frames, rhythm_score, smooth
 from emogesture.motion.rotations import axis_angle_to_matrix
 from emogesture.motion.skeleton import JOINT_NAMES
 
@@ -38,7 +53,14 @@ STAT_JOINTS: tuple[str, ...] = (
 )  # fmt: skip
 _J = {name: i for i, name in enumerate(JOINT_NAMES)}
 MOTION_STATS_CONSTANTS = {"still_speed_m_s": 0.05, "open_elbow_deg": 150.0, "speed_quantile": 0.95,
-                          "front_m": 0.15}
+                          "front_m": 0.15, "together_m": 0.2, "coupling_lag_s": 0.2}
+TORSO_CHAIN = tuple(_J[name] for name in ("pelvis", "spine1", "spine2", "spine3"))
+FINGER_JOINTS: dict[str, tuple[int, ...]] = {
+    side: tuple(i for i, name in enumerate(JOINT_NAMES)
+                if name.startswith(f"{side}_") and name[len(side) + 1:].rstrip("123") in
+                ("index", "middle", "pinky", "ring", "thumb"))
+    for side in ("left", "right")
+}  # 15 per hand
 
 
 def joint_angular_speed(poses: np.ndarray) -> np.ndarray:
@@ -89,6 +111,60 @@ def wrist_distance(joints: np.ndarray) -> np.ndarray:
     return np.linalg.norm(joints[:, _J["left_wrist"]] - joints[:, _J["right_wrist"]], axis=-1)
 
 
+def finger_angles_deg(poses: np.ndarray) -> np.ndarray:
+    """Axis-angle poses ``[T, 55, 3]`` -> each finger joint's rotation angle ``[T, 2, 15]`` (left, right
+    hand), degrees: 0 for SMPL-X's flat rest hand."""
+    poses = np.asarray(poses, np.float64)
+    return np.degrees(np.stack([np.linalg.norm(poses[:, list(FINGER_JOINTS[side])], axis=-1)
+                                for side in ("left", "right")], axis=1))
+
+
+def root_turn_deg(poses: np.ndarray) -> float:
+    """Axis-angle poses ``[T, 55, 3]`` -> the root-mean-square geodesic angle (degrees) between the root's
+    global orientation in each frame and its mean over the sequence (the rotation nearest the mean
+    rotation matrix)."""
+    rot = axis_angle_to_matrix(torch.as_tensor(np.asarray(poses, np.float64)[:, 0])).numpy()
+    u, _, vt = np.linalg.svd(rot.mean(0))
+    mean = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    cos = (np.einsum("ab,tac->tbc", mean, rot).trace(axis1=1, axis2=2) - 1.0) / 2.0
+    return float(np.degrees(np.sqrt(np.mean(np.arccos(np.clip(cos, -1.0, 1.0)) ** 2))))
+
+
+def torso_yaw_pitch_deg(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-angle poses ``[T, 55, 3]`` -> the chest's yaw and pitch ``[T]`` each, degrees: the global
+    rotation of spine3 (root, spine1, spine2, spine3 composed) applied to the body's forward axis (+z), its
+    direction about the world's up axis (y), unwrapped, and its elevation (positive: leaning forward).
+    The arms do not move it."""
+    rot = axis_angle_to_matrix(torch.as_tensor(np.asarray(poses, np.float64)[:, list(TORSO_CHAIN)])).numpy()
+    chest = rot[:, 0]
+    for k in range(1, len(TORSO_CHAIN)):
+        chest = chest @ rot[:, k]
+    forward = chest[:, :, 2]
+    yaw = np.degrees(np.unwrap(np.arctan2(forward[:, 0], forward[:, 2])))
+    pitch = -np.degrees(np.arcsin(np.clip(forward[:, 1], -1.0, 1.0)))
+    return yaw, pitch
+
+
+def wrist_heights(joints: np.ndarray) -> np.ndarray:
+    """Joint positions ``[T, 55, 3]`` -> each wrist's height above the pelvis along the body's up axis
+    ``[T, 2]`` (left, right), m."""
+    joints = np.asarray(joints, np.float64)
+    _, up, _ = body_frame(joints)
+    wrists = joints[:, [_J["left_wrist"], _J["right_wrist"]]] - joints[:, None, _J["pelvis"]]
+    return (wrists * up[:, None]).sum(-1)
+
+
+def onset_coupling(joints: np.ndarray, waveform: np.ndarray, sample_rate: int, fps: float,
+                   max_lag_s: float = MOTION_STATS_CONSTANTS["coupling_lag_s"]) -> float:
+    """The best correlation within ±``max_lag_s`` between the arm joints' mean speed (joints ``[T, 55, 3]``)
+    and the onset envelope of ``waveform [N]`` at the motion frames, both smoothed alike (module docstring)."""
+    from emogesture.audio import onset_strength
+
+    speed = smooth(arm_speed(joints, fps), fps=fps)
+    envelope = envelope_at_frames(onset_strength(waveform, sample_rate), sample_rate, len(speed), fps)
+    return rhythm_score(smooth(envelope, fps=fps), speed, max(0, int(round(max_lag_s * fps))))[0]
+
+
 @dataclass
 class _Pool:
     """Running sums over sequences, frame-weighted."""
@@ -99,24 +175,41 @@ class _Pool:
     elbow: list[np.ndarray] = field(default_factory=list)
     in_front: list[np.ndarray] = field(default_factory=list)
     wrist_distance: list[np.ndarray] = field(default_factory=list)
+    wrist_height: list[np.ndarray] = field(default_factory=list)
+    fingers: list[np.ndarray] = field(default_factory=list)  # [T, 2, 15] degrees
+    finger_change: list[float] = field(default_factory=list)  # per sequence, frame-weighted
+    root_turn: list[float] = field(default_factory=list)
+    yaw_std: list[float] = field(default_factory=list)
+    pitch_std: list[float] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
+    coupling: list[float] = field(default_factory=list)
+    coupling_lengths: list[int] = field(default_factory=list)
     frames: int = 0
     seconds: float = 0.0
 
 
-def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
+def motion_statistics(sequences: Sequence[tuple],
                       still_speed: float = MOTION_STATS_CONSTANTS["still_speed_m_s"],
                       open_elbow_deg: float = MOTION_STATS_CONSTANTS["open_elbow_deg"],
                       quantile: float = MOTION_STATS_CONSTANTS["speed_quantile"],
-                      front_m: float = MOTION_STATS_CONSTANTS["front_m"]) -> dict:
-    """Statistics pooled over ``sequences`` of ``(poses [T, 55, 3] axis-angle, joints [T, 55, 3] m, fps)``.
+                      front_m: float = MOTION_STATS_CONSTANTS["front_m"],
+                      together_m: float = MOTION_STATS_CONSTANTS["together_m"],
+                      coupling_lag_s: float = MOTION_STATS_CONSTANTS["coupling_lag_s"]) -> dict:
+    """Statistics pooled over ``sequences`` of ``(poses [T, 55, 3] axis-angle, joints [T, 55, 3] m, fps)``,
+    optionally with a fourth item ``(waveform [N], sample_rate)``: the sequence's speech (or None).
 
     Returns ``{"angular_speed": {joint: rad/frame}, "wrist_speed_mean", "wrist_speed_p95" (m/s),
     "wrist_still_share", "wrist_below_pelvis_share", "elbow_open_share", "hand_in_front_share",
-    "wrist_distance_median" (m), "sequences", "frames", "seconds", "constants"}``. Sequences shorter
-    than 2 frames are skipped.
+    "wrist_distance_median" (m), "wrist_height_p10/_median/_p90" (m above the pelvis), "hands_together_share",
+    "finger_curl_deg", "finger_curl_left_deg", "finger_curl_right_deg", "finger_change_deg",
+    "root_turn_deg", "torso_yaw_std_deg", "torso_pitch_std_deg" (per sequence, frame-weighted means),
+    "onset_coupling" (frame-weighted mean over the sequences with audio; None without), "sequences",
+    "sequences_with_audio", "frames", "seconds", "constants"}``. Sequences shorter than 2 frames are skipped.
     """
     pool = _Pool()
-    for poses, joints, fps in sequences:
+    for item in sequences:
+        poses, joints, fps = item[:3]
+        audio = item[3] if len(item) > 3 else None
         poses, joints = np.asarray(poses), np.asarray(joints, np.float64)
         if len(poses) < 2:
             continue
@@ -127,12 +220,30 @@ def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
         pool.elbow.append(elbow_angles_deg(joints).reshape(-1))
         pool.in_front.append(hands_in_front(joints, front_m).reshape(-1))
         pool.wrist_distance.append(wrist_distance(joints))
+        pool.wrist_height.append(wrist_heights(joints).reshape(-1))
+        fingers = finger_angles_deg(poses)
+        pool.fingers.append(fingers)
+        pool.finger_change.append(float(fingers.std(0).mean()))
+        pool.root_turn.append(root_turn_deg(poses))
+        yaw, pitch = torso_yaw_pitch_deg(poses)
+        pool.yaw_std.append(float(yaw.std()))
+        pool.pitch_std.append(float(pitch.std()))
+        pool.lengths.append(len(poses))
+        if audio is not None:
+            pool.coupling.append(onset_coupling(joints, np.asarray(audio[0]), int(audio[1]), fps, coupling_lag_s))
+            pool.coupling_lengths.append(len(poses))
         pool.frames += len(poses)
         pool.seconds += len(poses) / fps
     if not pool.angular:
         raise ValueError("no sequence of at least 2 frames")
     angular = np.concatenate(pool.angular).mean(0)
     speed = np.concatenate(pool.wrist_speed)
+    heights = np.concatenate(pool.wrist_height)
+    fingers = np.concatenate(pool.fingers)
+
+    def per_sequence(values: list[float]) -> float:
+        return float(np.average(values, weights=pool.lengths))
+
     return {
         "angular_speed": {name: float(angular[_J[name]]) for name in STAT_JOINTS},
         "wrist_speed_mean": float(speed.mean()),
@@ -142,9 +253,22 @@ def motion_statistics(sequences: Sequence[tuple[np.ndarray, np.ndarray, float]],
         "elbow_open_share": float((np.concatenate(pool.elbow) > open_elbow_deg).mean()),
         "hand_in_front_share": float(np.concatenate(pool.in_front).mean()),
         "wrist_distance_median": float(np.median(np.concatenate(pool.wrist_distance))),
-        "sequences": len(pool.angular), "frames": pool.frames, "seconds": round(pool.seconds, 2),
+        "wrist_height_p10": float(np.quantile(heights, 0.1)),
+        "wrist_height_median": float(np.median(heights)),
+        "wrist_height_p90": float(np.quantile(heights, 0.9)),
+        "hands_together_share": float((np.concatenate(pool.wrist_distance) < together_m).mean()),
+        "finger_curl_deg": float(fingers.mean()),
+        "finger_curl_left_deg": float(fingers[:, 0].mean()),
+        "finger_curl_right_deg": float(fingers[:, 1].mean()),
+        "finger_change_deg": per_sequence(pool.finger_change),
+        "root_turn_deg": per_sequence(pool.root_turn),
+        "torso_yaw_std_deg": per_sequence(pool.yaw_std),
+        "torso_pitch_std_deg": per_sequence(pool.pitch_std),
+        "onset_coupling": float(np.average(pool.coupling, weights=pool.coupling_lengths)) if pool.coupling else None,
+        "sequences": len(pool.angular), "sequences_with_audio": len(pool.coupling), "frames": pool.frames,
+        "seconds": round(pool.seconds, 2),
         "constants": {"still_speed_m_s": still_speed, "open_elbow_deg": open_elbow_deg, "speed_quantile": quantile,
-                      "front_m": front_m},
+                      "front_m": front_m, "together_m": together_m, "coupling_lag_s": coupling_lag_s},
     }
 
 
@@ -161,12 +285,30 @@ def motion_stats_markdown(results: dict[str, dict]) -> str:
             ("wrist slower than 0.05 m/s", "wrist_still_share", "{:.1%}"),
             ("a hand >= 0.15 m in front of the chest", "hand_in_front_share", "{:.1%}"),
             ("wrists' median distance (m)", "wrist_distance_median", "{:.3f}"),
-            ("sequences / seconds", None, None))
+            ("wrist height above the pelvis p10 / median / p90 (m)", "wrist_height", None),
+            ("hands together (wrists < 0.2 m apart)", "hands_together_share", "{:.1%}"),
+            ("finger curl, mean joint angle (deg)", "finger_curl_deg", "{:.1f}"),
+            ("finger curl left / right (deg)", "finger_curl_sides", None),
+            ("hand shape change, joint angle std (deg)", "finger_change_deg", "{:.1f}"),
+            ("body turn: root rotation about its mean (deg)", "root_turn_deg", "{:.2f}"),
+            ("torso yaw / pitch std (deg)", "torso", None),
+            ("onset coupling (arm speed ~ onsets, best r within 0.2 s)", "onset_coupling", "{:.3f}"),
+            ("sequences / seconds", "sequences", None))
+
+    def cell(r: dict, key: str, fmt: str | None) -> str:
+        if key == "sequences":
+            return f"{r['sequences']} / {r['seconds']:.0f}"
+        if key == "wrist_height":
+            return " / ".join(f"{r[f'wrist_height_{q}']:.2f}" for q in ("p10", "median", "p90"))
+        if key == "finger_curl_sides":
+            return f"{r['finger_curl_left_deg']:.1f} / {r['finger_curl_right_deg']:.1f}"
+        if key == "torso":
+            return f"{r['torso_yaw_std_deg']:.2f} / {r['torso_pitch_std_deg']:.2f}"
+        value = r.get(key)
+        return "–" if value is None else fmt.format(value)
+
     for label, key, fmt in rows:
-        if key is None:
-            cells = [f"{results[n]['sequences']} / {results[n]['seconds']:.0f}" for n in names]
-        else:
-            cells = [fmt.format(results[n][key]) for n in names]
+        cells = [cell(results[n], key, fmt) for n in names]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -188,11 +330,23 @@ def npz_files(path: str | PathLike[str]) -> list[Path]:
     return files
 
 
+def speech_of(motion_file: str | PathLike[str]) -> Path | None:
+    """The speech recording of a motion file, where there is one: ``NAME.wav`` beside ``NAME.npz``, or a
+    BEAT2 root's ``wave16k/NAME.wav`` for its ``smplxflame_30/NAME.npz``."""
+    f = Path(motion_file)
+    for candidate in (f.with_suffix(".wav"), f.parent.parent / "wave16k" / f"{f.stem}.wav"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
 def file_statistics(files: Sequence[str | PathLike[str]], every: int = 1, progress: bool = False) -> dict:
     """:func:`motion_statistics` of BEAT2/SMPL-X npz files (every ``every``-th file), each posed on the
-    licence-free skeleton with its own shape coefficients."""
+    licence-free skeleton with its own shape coefficients, with its speech where :func:`speech_of` finds
+    it (for the onset coupling)."""
     from tqdm import tqdm
 
+    from emogesture.audio import load_audio
     from emogesture.motion.body import SkeletonBody
     from emogesture.motion.io import load_smplx_npz
 
@@ -206,6 +360,7 @@ def file_statistics(files: Sequence[str | PathLike[str]], every: int = 1, progre
             body = SkeletonBody(np.asarray(seq.betas[:10], np.float32) if len(seq.betas) else None)
             with torch.no_grad():
                 joints = body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
-            yield seq.poses, joints, float(seq.fps)
+            wav = speech_of(f)
+            yield seq.poses, joints, float(seq.fps), (load_audio(wav) if wav is not None else None)
 
     return motion_statistics(list(sequences()))
