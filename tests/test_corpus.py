@@ -29,8 +29,8 @@ from emogesture.data.synthetic import CorpusConfig, build_corpus, plan_takes, te
 from emogesture.data.synthetic.speech import word_timings
 from emogesture.data.synthetic.takes import TakePlan, build_take
 from emogesture.errors import ConfigError, EmogestureError
-from emogesture.eval.metrics import beat_align, motion_beats
 from emogesture.motion import LOWER_BODY_JOINTS, UPPER_BODY_JOINTS, SkeletonBody, load_smplx_npz
+from emogesture.motion.rotations import axis_angle_to_matrix
 
 MIN_SECONDS = 8.0
 SEED = 0
@@ -168,7 +168,11 @@ def test_motion_is_anatomically_plausible(corpus):
     root, _ = corpus
     body = SkeletonBody()
     for name in sorted(p.stem for p in (root / "smplxflame_30").glob("*.npz")):  # every take
-        joints = body(torch.from_numpy(load_smplx_npz(root / "smplxflame_30" / f"{name}.npz").poses)).numpy()
+        poses = load_smplx_npz(root / "smplxflame_30" / f"{name}.npz").poses
+        joints = body(torch.from_numpy(poses)).numpy()
+        # in the root's own frame: the body turns toward its listeners
+        joints = np.einsum("tab,tja->tjb", axis_angle_to_matrix(torch.from_numpy(poses[:, 0]).double()).numpy(),
+                           joints - joints[:, :1])
         wrists, shoulders, head, chest = joints[:, [20, 21]], joints[:, [16, 17]], joints[:, 15], joints[:, 9]
         assert np.all(wrists[..., 1] < head[:, None, 1])  # hands below the head
         assert np.all(wrists[..., 1] > shoulders[..., 1] - 0.65)  # and not below arm's length
@@ -266,7 +270,7 @@ def measured(corpus):
         joints = body(torch.from_numpy(seq.poses)).numpy()
         rows.append(dict(emotion=info.emotion, speaker=info.speaker_id, split=splits[name],
                          audio=_audio_features(wave), motion=_motion_features(seq.poses, joints),
-                         onsets=detect_onsets(wave), beats=motion_beats(joints), seconds=len(wave) / 16000))
+                         seconds=len(wave) / 16000))
     return rows
 
 
@@ -295,28 +299,29 @@ def test_emotion_and_speaker_recoverable_from_audio_and_motion(measured):
 
 
 @pytest.mark.slow
-def test_motion_beats_follow_the_audio_onsets(measured):
-    """BA (SPEC §8, σ 0.3 s; the evaluation suite's own beats and score) with the take's own onsets beats the
-    same onsets shifted in time."""
+def test_motion_follows_the_speech_at_a_persons_level(corpus):
+    """The arms' speed follows the take's own onsets (the onset coupling of ``motion-stats``) more than the
+    same audio shifted in time, and not as tightly as a corpus that strokes on every syllable. (Against a
+    real take's 0.05, on whole takes: ``experiments/motion_realism.py``; these 8-s takes read higher.)"""
     from scipy.stats import wilcoxon
 
-    report = {}
-    for sigma in (0.3, 0.1):
-        own, shifted = [], []
-        for r in measured:
-            on, dur = r["onsets"], r["seconds"]
-            own.append(beat_align(r["beats"], on, sigma))
-            shifted.append(np.mean([beat_align(r["beats"], np.sort((on + s) % dur), sigma)
-                                    for s in (0.37, 1.1, dur / 2)]))
-        own, shifted = np.array(own), np.array(shifted)
-        report[sigma] = (own.mean(), shifted.mean(), (own > shifted).mean(), wilcoxon(own, shifted).pvalue)
-    for sigma, (own, shifted, share, p) in report.items():
-        print(f"\nBA sigma {sigma} s: own onsets {own:.4f}, shifted onsets {shifted:.4f}, "
-              f"own > shifted in {share:.0%} of takes, Wilcoxon p = {p:.1e}")
-    own, shifted, share, p = report[0.3]
-    assert own > shifted and share >= 0.65 and p < 1e-4
-    own, shifted, share, p = report[0.1]
-    assert own - shifted >= 0.03 and share >= 0.8 and p < 1e-6
+    from emogesture.eval.motion_stats import onset_coupling
+
+    root, _ = corpus
+    body = SkeletonBody()
+    own, shifted = [], []
+    for f in sorted((root / "smplxflame_30").glob("*.npz")):
+        joints = body(torch.from_numpy(load_smplx_npz(f).poses)).numpy()
+        wave, sr = load_audio(root / "wave16k" / f"{f.stem}.wav")
+        own.append(onset_coupling(joints, wave, sr, 30.0))
+        shifted.append(np.mean([onset_coupling(joints, np.roll(wave, int(s * sr)), sr, 30.0)
+                                for s in (1.1, 2.3, len(wave) / sr / 2)]))
+    own, shifted = np.array(own), np.array(shifted)
+    p = wilcoxon(own, shifted).pvalue
+    print(f"\nonset coupling: own audio {own.mean():.3f}, shifted {shifted.mean():.3f}, own > shifted in "
+          f"{(own > shifted).mean():.0%} of takes, Wilcoxon p = {p:.1e}")
+    assert (own > shifted).mean() >= 0.6 and p < 0.01  # present, weak (unrelated motion: about 50 %, p ~ 0.5)
+    assert own.mean() <= 0.15  # corpus version 4 ticked on every syllable: about 0.2 on these short takes
 
 
 # Real conversational motion capture (BEAT, two speakers; issue 17's table): mean angular speed of each joint's

@@ -7,11 +7,19 @@ local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
   posture + speaker rest offsets + per-take jitter, drifting slowly;
 * a "gesture space" lift of the hands while speaking (smoothed voice activity), back to the hanging
   rest in pauses;
-* strokes at detected audio onsets: an asymmetric Gaussian rise-apex-return of shoulder, elbow,
-  wrist, finger, collar, torso-twist and head-nod channels, apex on the onset, so the arms' speed
-  minima fall on onsets; most strokes bend the elbow (beats), some raise the arm and open the elbow
-  (``P_REACH``: an arm reaching out); amplitude, width and rate from emotion × speaker × jitter, hands
-  from the speaker's handedness;
+* strokes on the strongest voiced onsets (stressed syllables, phrase accents), about one every
+  ``STROKE_GAP`` s scaled by the emotion's and speaker's rate, some left out (``P_REST``: the hands
+  rest or hold), each apex a little off its onset (``APEX_JITTER``) and sometimes held
+  (``MAX_HOLD``): an asymmetric Gaussian rise-apex-return of shoulder, elbow, wrist, collar,
+  torso-twist and head-nod channels; most strokes bend the elbow (beats) with the forearm turned in
+  toward the midline, some raise the arm and open the elbow (``P_REACH``: an arm reaching out), some
+  bring both hands together in front of the body (``P_TOGETHER``); amplitude, width and rate from
+  emotion × speaker × jitter, hands from the speaker's handedness;
+* hands (:mod:`.hands`): loosely curled at rest, each stroke forming a hand shape of the emotion and
+  the speaker's habits (open, point, grip, fist, limp);
+* a body that turns and leans: the root turns slowly toward one of a few imagined listeners, switching
+  at phrase starts (``LISTENER_YAW``), shifts its weight, and shares the posture's lean (leaning in
+  while talking);
 * an idle layer that never stops (``IDLE``): band-limited sway, twist and lean of each spine joint,
   head and neck movement, collar movement, and arm and wrist movement scaled by the take's amplitude,
   so no joint is frozen (issue 17 measured the earlier corpus at a tenth of real torso speed);
@@ -33,24 +41,33 @@ from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
 from emogesture.audio import detect_onsets, frame_energy, onset_strength
+from emogesture.data.synthetic import hands
 from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter
 from emogesture.types import FPS, NUM_JOINTS
 
-ARM_DOWN = 1.25  # rad about Z that brings the T-pose arms down beside the body
+ARM_DOWN = 1.22  # rad about Z that brings the T-pose arms down beside the body
 REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
-MAX_ADDUCTION = 0.05  # rad the hanging arm may come closer to the body than at rest
+MAX_ADDUCTION = 0.03  # rad the hanging arm may come closer to the body than at rest
 MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
 STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
-STROKE_GAP = 0.45  # s, minimum spacing of neutral strokes
+STROKE_GAP = 0.6  # s, minimum spacing of neutral strokes
+P_REST = 0.2  # share of chosen stroke times left out: the hands rest or hold
+APEX_JITTER = 0.1  # s, sd of a stroke's apex about its onset
+MAX_HOLD = 0.3  # s, longest hold at a stroke's apex
+P_TOGETHER = 0.12  # share of strokes that bring both hands together in front of the body
+INWARD_TALK = 0.25  # rad the forearms turn in toward the midline while talking (times the elbow's bend)
+LISTENER_YAW = 0.16  # rad: the imagined listeners sit within this turn of straight ahead
+P_TURN = 0.5  # chance that a phrase is addressed to another listener
+ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
 STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
-MAX_STROKE = 1.1  # rad: the largest stroke (keeps the hands below about 4 m/s)
+MAX_STROKE = 1.0  # rad: the largest stroke
+MAX_STROKE_SPEED = 8.0  # rad/s: a stroke's amplitude over its rise's half-width at most (about 5 rad/s at its fastest)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
 # the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
-IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.06, 0.35))
+IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
 COLLAR, SHOULDER, ELBOW, WRIST = (13, 14), (16, 17), (18, 19), (20, 21)
-FINGERS = (tuple(range(25, 37)), tuple(range(40, 52)))  # without thumbs
-THUMBS = (tuple(range(37, 40)), tuple(range(52, 55)))
+HAND = (tuple(range(25, 40)), tuple(range(40, 55)))  # the 15 finger joints of each hand
 
 
 @dataclass(frozen=True)
@@ -90,9 +107,27 @@ def _hand_weights(speaker: Speaker, asymmetry: float) -> tuple[float, float]:
     return (weak, 1.0) if speaker.handedness == "right" else (1.0, weak)
 
 
+def listener_yaw(active: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The root's slow turn ``[T]`` (rad) toward one of three imagined listeners, another one at some phrase
+    starts (where ``active`` speech begins), smoothed into a turn of about a second."""
+    listeners = rng.uniform(-LISTENER_YAW, LISTENER_YAW, 3)
+    yaw = np.empty(len(active))
+    current, last = int(rng.integers(3)), 0
+    for start in np.flatnonzero(np.diff(active.astype(int)) == 1) + 1:
+        yaw[last:start] = listeners[current]
+        if rng.uniform() < P_TURN:
+            current = int((current + rng.integers(1, 3)) % 3)
+        last = start
+    yaw[last:] = listeners[current]
+    return gaussian_filter1d(yaw, 0.5 * FPS, mode="nearest")
+
+
 def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: TakeJitter,
-                rng: np.random.Generator, sample_rate: int = 16000) -> tuple[np.ndarray, list[Stroke]]:
-    """Gestures for one take: ``(poses [T, 55, 3] float32 axis-angle, strokes)``, ``T = round(s × 30)``."""
+                rng: np.random.Generator, sample_rate: int = 16000,
+                hand_habits: np.ndarray | None = None) -> tuple[np.ndarray, list[Stroke]]:
+    """Gestures for one take: ``(poses [T, 55, 3] float32 axis-angle, strokes)``, ``T = round(s × 30)``.
+    ``hand_habits``: the speaker's liking for each hand shape (:func:`.hands.speaker_habits`; default alike)."""
+    habits = np.ones(len(hands.SHAPES)) if hand_habits is None else np.asarray(hand_habits, np.float64)
     energy = frame_energy(wave, sample_rate, FPS).astype(np.float64)
     n = len(energy)
     t = np.arange(n) / FPS
@@ -113,8 +148,12 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     body["shrug"] = body["shrug"] + 0.012 * breath
     body["head_turn"] = body["head_turn"] + 0.06 * _smooth_noise(rng, n, 1.0 * FPS)[:, 0]
     weights = _hand_weights(speaker, em.asymmetry)
-    arm_keys = ("flex", "abduct", "elbow", "wflex", "wdev", "twist", "curl")
+    arm_keys = ("flex", "abduct", "elbow", "wflex", "wdev", "twist", "inward")
     arms = [{k: np.zeros(n) for k in arm_keys} for _ in range(2)]
+    fingers = [hands.rest_channels(n, speaker.finger_curl, emotion.name, rng) for _ in range(2)]
+    root = dict(yaw=listener_yaw(active, rng) + 0.02 * _smooth_noise(rng, n, 1.0 * FPS)[:, 0],
+                roll=0.015 * _smooth_noise(rng, n, 2.0 * FPS)[:, 0],  # weight shifts
+                pitch=0.03 * lift * amp ** 0.5)  # leaning in while talking
     for side in range(2):
         a = arms[side]
         noise = _smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
@@ -125,7 +164,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
         a["flex"] += REST["flex"] + body["flex"] + 0.1 * weights[side] * lift * amp ** 0.5
         a["abduct"] += REST["abduct"] + body["abduct"] + 0.05 * weights[side] * lift * amp
         a["elbow"] += REST["elbow"] + body["elbow"] + 0.4 * weights[side] * lift * amp ** 0.5
-        a["curl"] += speaker.finger_curl
+        a["inward"] += INWARD_TALK * weights[side] * lift
         if em.tremor:
             shake = _smooth_noise(rng, n, 1.0, 3) - _smooth_noise(rng, n, 4.0, 3) * 0.5
             a["wflex"] += em.tremor * 2 * shake[:, 0]
@@ -146,43 +185,61 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     p_weak = 0.12 * (1 - em.asymmetry)
     dominant = 0 if speaker.handedness == "left" else 1
     for apex in apexes:
-        apex = float(apex + rng.normal(0.0, 0.03))
+        rest, hold = rng.uniform() < P_REST, rng.uniform(0.0, MAX_HOLD) * (rng.uniform() < 0.4)
+        apex = float(np.clip(apex + rng.normal(0.0, APEX_JITTER), 0.0, t[-1]))
         s = float(np.interp(apex, onsets, strength)) if onsets.size else 1.0
         a_k = min(STROKE_AMPLITUDE * amp * (0.55 + 0.45 * s) * float(np.exp(rng.normal(0.0, 0.25))), MAX_STROKE)
-        w = np.where(t < apex, rise, fall)
-        bump = np.exp(-0.5 * ((t - apex) / w) ** 2)
         u = rng.uniform()
         sides = (0, 1) if u < p_both else ((1 - dominant,) if u < p_both + p_weak else (dominant,))
-        if rng.uniform() < P_REACH:  # reach out: the arm rises forward and the elbow opens
+        kind = rng.uniform()
+        slow = 1.0
+        if kind < P_TOGETHER:  # both hands come together in front of the body, slowly, and stay a moment
+            sides, hold, slow = (0, 1), hold + 0.3, 1.6
+            direction = dict(elbow=rng.uniform(0.7, 1.0), flex=rng.uniform(0.35, 0.6), abduct=rng.normal(0, 0.1),
+                             wflex=rng.normal(0, 0.2), wdev=rng.normal(0, 0.1), twist=rng.normal(0, 0.2),
+                             inward=rng.uniform(0.8, 1.1))
+        elif kind < P_TOGETHER + P_REACH:  # reach out: the arm rises forward and the elbow opens
             direction = dict(elbow=-rng.uniform(0.2, 0.5), flex=rng.uniform(0.6, 1.0), abduct=rng.normal(0, 0.4),
                              wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
-                             curl=-rng.uniform(0.2, 0.6))
-        else:
+                             inward=rng.normal(0, 0.1))
+        else:  # a beat in front of the body, the forearm turned in
             direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
                              wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
-                             curl=-rng.uniform(0.0, 0.5))
+                             inward=rng.uniform(0.0, 0.3))
+        floor = a_k / MAX_STROKE_SPEED  # a large stroke takes its time: the hand stays below about 4 m/s
+        w = slow * np.where(t < apex, max(rise, floor), max(fall, 1.4 * floor))
+        bump = np.exp(-0.5 * (np.maximum(t - apex - hold, 0.0) + np.minimum(t - apex, 0.0)) ** 2 / w ** 2)
+        shape = "open" if kind >= P_TOGETHER and kind < P_TOGETHER + P_REACH and rng.uniform() < 0.6 else \
+            hands.stroke_shape(rng, emotion.name, habits)
+        if rest:  # a chosen stroke time left out: no stroke (the draws above keep the take's others alike)
+            continue
+        shape_bump = np.exp(-0.5 * (np.maximum(t - apex - hold, 0.0) / (2 * fall)
+                                    + np.minimum(t - apex + 0.05, 0.0) / (1.5 * rise)) ** 2)
         for side in sides:
             for k, v in direction.items():
                 arms[side][k] += a_k * v * bump
+            hands.add_shape(fingers[side], shape, shape_bump, float(np.clip(a_k / STROKE_AMPLITUDE, 0.3, 1.0)))
         body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
         body["lean"] += 0.04 * a_k * bump
         body["shrug"] += 0.08 * a_k * rng.uniform(0.3, 1.0) * bump  # the collars take part in the stroke
         body["twist"] += 0.08 * a_k * rng.normal(0.0, 1.0) * bump
         score = float(np.clip(1.0 - np.exp(-a_k / 0.35), 0.0, 1.0))
         hand = "both" if len(sides) == 2 else ("left", "right")[sides[0]]
-        strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + 2 * fall),
+        strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + hold + 2 * fall),
                               round(score, 3), hand))
-    return _to_poses(body, arms, energy, rng), strokes
+    return _to_poses(body, arms, fingers, root, energy, rng), strokes
 
 
-def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dict, energy: np.ndarray,
+              rng: np.random.Generator) -> np.ndarray:
     """Map the control channels onto SMPL-X local axis-angle rotations ``[T, 55, 3]``."""
     n = len(energy)
     poses = np.zeros((n, NUM_JOINTS, 3))
-    poses[:, 0, 1] = 0.02 * _smooth_noise(rng, n, 2.0 * FPS)[:, 0]  # slight weight shift
+    # the root: turned toward a listener, sharing the posture's lean, shifting its weight
+    poses[:, 0] = np.stack([ROOT_LEAN * body["lean"] + root["pitch"], root["yaw"], root["roll"]], axis=1)
     idle = {k: _smooth_noise(rng, n, sigma * FPS, 3) * a for k, (a, sigma) in IDLE.items()}
     for k, j in enumerate(SPINE):  # sway, twist and lean that never stop, strongest low in the spine
-        poses[:, j] = np.stack([body["lean"], body["twist"], body["side"]], axis=1) / 3.0
+        poses[:, j] = np.stack([(1.0 - ROOT_LEAN) * body["lean"], body["twist"], body["side"]], axis=1) / 3.0
         # (lean, twist, side): little side bend, which would carry the chest into a hanging arm
         poses[:, j] += (_smooth_noise(rng, n, IDLE["spine"][1] * FPS, 3) * IDLE["spine"][0] * (1.0 - 0.25 * k)
                         * np.array([1.0, 1.0, 0.3]))
@@ -197,18 +254,21 @@ def _to_poses(body: dict, arms: list[dict], energy: np.ndarray, rng: np.random.G
         a, m = arms[side], mirror[side]
         # a lowered shoulder (negative shrug) turns the hanging arm inwards as well: together they bring
         # the arm at most MAX_ADDUCTION closer to the body than the rest pose, so the hand stays beside the hips
-        abduct = np.clip(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0), MAX_ABDUCTION)
+        # (and a chest bent sideways toward the arm tilts the hanging arm into the hip: the arm opens as much)
+        toward = np.maximum(body["side"] if side == 1 else -body["side"], 0.0)
+        abduct = np.clip(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0) + toward, MAX_ABDUCTION)
         flex = np.clip(a["flex"], -0.3, MAX_FLEX)
         down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
         forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))
-        poses[:, SHOULDER[side]] = (forward * down).as_rotvec() * m
+        # the upper arm turned about its own axis: a bent forearm swings in toward the midline (a straight
+        # arm hardly moves, so the turn follows the elbow's bend)
+        inward = (np.clip(a["inward"], -0.2, 1.1) * np.clip((a["elbow"] - 0.3) / 0.9, 0.0, 1.0)
+                  * np.clip(flex / 0.3, 0.0, 1.0))  # and the arm's reach forward, so the hand stays in front
+        turn = Rotation.from_rotvec(np.stack([inward, np.zeros(n), np.zeros(n)], 1))
+        poses[:, SHOULDER[side]] = (forward * down * turn).as_rotvec() * m
         collar = _smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
         poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
         poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
         poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
-        curl = np.clip(a["curl"], -0.2, 1.2)
-        for k, j in enumerate(FINGERS[side]):
-            poses[:, j, 2] = -curl * (1.0 + 0.25 * (k % 3)) * 0.6 * m[2]
-        for j in THUMBS[side]:
-            poses[:, j, 1] = -0.2 * curl * m[1]
+        poses[:, list(HAND[side])] = hands.finger_poses(fingers[side], m)
     return poses.astype(np.float32)

@@ -26,6 +26,7 @@ from emogesture.data.synthetic.factors import (
     words_needed,
 )
 from emogesture.data.synthetic.gestures import Stroke, make_motion
+from emogesture.data.synthetic.hands import speaker_habits
 from emogesture.data.synthetic.speech import (
     SAMPLE_RATE,
     run_engine,
@@ -115,7 +116,8 @@ def build_take(out: Path, plan: TakePlan) -> str:
     duration = len(audio) / SAMPLE_RATE
     words = word_timings(text, speech_segments(clean))
     poses, strokes = make_motion(audio, emotion, speaker, jitter,
-                                 np.random.default_rng([plan.seed, 303, plan.speaker_id, plan.take]))
+                                 np.random.default_rng([plan.seed, 303, plan.speaker_id, plan.take]),
+                                 hand_habits=speaker_habits(plan.seed, plan.speaker_id))
     paths = take_paths(out, plan.name)
     for p in paths.values():
         p.parent.mkdir(parents=True, exist_ok=True)
