@@ -125,3 +125,9 @@ def test_corrupt_take_names_the_file(tmp_path):
     (tmp_path / "root" / "wave16k" / f"{names[0]}.wav").write_bytes(b"RIFF garbage")
     with pytest.raises(InputFileError, match=names[0]):
         prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+
+
+def test_a_cache_folder_that_cannot_be_made_is_one_line(tmp_path):
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(EmogestureError, match="link: cannot create the cache folder"):
+        prepare(tmp_path, tmp_path / "link", PrepareConfig())

@@ -88,3 +88,4 @@ def test_a_model_hears_every_recording_as_its_cache_did(tmp_path):
     d, _ = plain.encode(4.0 * x)
     moved, kept = np.abs(c.emotion - d.emotion).mean(), np.abs(a.emotion - b.emotion).mean()
     assert kept < 0.1 * moved  # only the bins at Kaldi's log floor (which no gain moves) still differ
+

@@ -292,7 +292,10 @@ def prepare(
         raise EmogestureError(f"recording_norm {config.recording_norm!r}: use one of {', '.join(RECORDING_NORMS)}")
     if not root.is_dir():
         raise InputFileError(root, "data root not found")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:  # a file there, a link to nowhere, no permission
+        raise EmogestureError(f"{out}: cannot create the cache folder ({err.strerror})") from None
     cfg_path = out / "prepare_config.json"
     cfg = {"digest": config.digest(), "config": config.to_dict(), "root": str(root.resolve())}
     if cfg_path.is_file():
