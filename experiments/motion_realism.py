@@ -4,7 +4,8 @@ speech and on real read speech, beside a real conversational take.
 `emogesture motion-stats`'s statistics (:func:`emogesture.eval.motion_stats.motion_statistics`) with the
 onset coupling, for:
 
-- **corpus**: every ``EVERY``-th take of the corpus (its motion and its own speech);
+- **corpus**: every ``EVERY``-th take of the corpus (its motion and its own speech), and of its test split
+  (the ground truth of the next column: the test speakers differ from the others);
 - **model, test takes**: the model's motion (``--emotion auto``, seed 0) for the test split's takes of the
   corpus (every ``EVERY``-th), with their speech;
 - **model, real speech**: the same for the real read speech of :mod:`emogesture.data.real_speech`.
@@ -60,6 +61,7 @@ def main(corpus: str, out_dir: str, model: str | None = None, every: str = "4") 
     results = {"corpus": file_statistics(files, step, progress=True)}
     split = read_split_csv(root / "train_test_split.csv")
     test = [t for t in sorted(split) if split[t] == "test"][::step]
+    results["corpus, test takes"] = file_statistics([root / "smplxflame_30" / f"{t}.npz" for t in test])
     pipe = GesturePipeline.from_run(model or None)
     results["model, test takes"] = generated(pipe, [load_audio(root / "wave16k" / f"{t}.wav")[0] for t in test])
     results["model, real speech"] = generated(pipe, [load_real_recording(r) for r in RECORDINGS])
