@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from emogesture.audio import onset_strength
 from emogesture.errors import InputFileError
 from emogesture.eval.rhythm import arm_speed, envelope_at_frames, rhythm_score, smooth
 from emogesture.motion.rotations import axis_angle_to_matrix
@@ -158,8 +159,6 @@ def onset_coupling(joints: np.ndarray, waveform: np.ndarray, sample_rate: int, f
                    max_lag_s: float = MOTION_STATS_CONSTANTS["coupling_lag_s"]) -> float:
     """The best correlation within ±``max_lag_s`` between the arm joints' mean speed (joints ``[T, 55, 3]``)
     and the onset envelope of ``waveform [N]`` at the motion frames, both smoothed alike (module docstring)."""
-    from emogesture.audio import onset_strength
-
     speed = smooth(arm_speed(joints, fps), fps=fps)
     envelope = envelope_at_frames(onset_strength(waveform, sample_rate), sample_rate, len(speed), fps)
     return rhythm_score(smooth(envelope, fps=fps), speed, max(0, int(round(max_lag_s * fps))))[0]

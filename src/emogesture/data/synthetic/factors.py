@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from emogesture.data.beat import EMOTIONS, SPEAKERS
 
@@ -259,3 +260,9 @@ def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float)
     rate = EMOTION_FACTORS[emotion].prosody.rate ** emotion_prosody_scale
     fastest = np.exp(0.1) * rate * np.exp(0.1)  # speaker, emotion, jitter
     return int(np.ceil(min_seconds * BASE_WORDS_PER_SECOND * fastest))
+
+
+def smooth_noise(rng: np.random.Generator, n: int, sigma_frames: float, size: int = 1) -> np.ndarray:
+    """Unit-variance low-pass noise ``[n, size]`` (Gaussian-smoothed white noise, σ in frames)."""
+    x = gaussian_filter1d(rng.standard_normal((n + 200, size)), sigma_frames, axis=0, mode="wrap")[100:-100]
+    return x / (x.std(axis=0, keepdims=True) + 1e-9)

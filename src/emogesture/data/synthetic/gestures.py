@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from emogesture.audio import detect_onsets, frame_energy, onset_strength
 from emogesture.data.synthetic import hands
-from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter
+from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter, smooth_noise
 from emogesture.types import FPS, NUM_JOINTS
 
 ARM_DOWN = 1.22  # rad about Z that brings the T-pose arms down beside the body
@@ -79,12 +79,6 @@ class Stroke:
     end: float
     score: float
     hand: str
-
-
-def _smooth_noise(rng: np.random.Generator, n: int, sigma_frames: float, size: int = 1) -> np.ndarray:
-    """Unit-variance low-pass noise ``[n, size]``."""
-    x = gaussian_filter1d(rng.standard_normal((n + 200, size)), sigma_frames, axis=0, mode="wrap")[100:-100]
-    return x / (x.std(axis=0, keepdims=True) + 1e-9)
 
 
 def pick_strokes(onsets: np.ndarray, strength: np.ndarray, active: np.ndarray, min_gap: float,
@@ -140,24 +134,24 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
 
     # Channels: posture per side (L, R) and body.
     post = {k: em.posture.get(k, 0.0) + sm.posture.get(k, 0.0) + jitter.posture[k] for k in POSTURE_KEYS}
-    drift = _smooth_noise(rng, n, 1.5 * FPS, len(POSTURE_KEYS)) * 0.035
+    drift = smooth_noise(rng, n, 1.5 * FPS, len(POSTURE_KEYS)) * 0.035
     body = {k: post[k] + drift[:, i] for i, k in enumerate(POSTURE_KEYS)}
     breath_f = rng.uniform(0.2, 0.3)
     breath = np.sin(2 * np.pi * breath_f * t + rng.uniform(0, 2 * np.pi))
     body["lean"] = body["lean"] + 0.012 * breath
     body["shrug"] = body["shrug"] + 0.012 * breath
-    body["head_turn"] = body["head_turn"] + 0.06 * _smooth_noise(rng, n, 1.0 * FPS)[:, 0]
+    body["head_turn"] = body["head_turn"] + 0.06 * smooth_noise(rng, n, 1.0 * FPS)[:, 0]
     weights = _hand_weights(speaker, em.asymmetry)
     arm_keys = ("flex", "abduct", "elbow", "wflex", "wdev", "twist", "inward")
     arms = [{k: np.zeros(n) for k in arm_keys} for _ in range(2)]
     fingers = [hands.rest_channels(n, speaker.finger_curl, emotion.name, rng) for _ in range(2)]
-    root = dict(yaw=listener_yaw(active, rng) + 0.02 * _smooth_noise(rng, n, 1.0 * FPS)[:, 0],
-                roll=0.015 * _smooth_noise(rng, n, 2.0 * FPS)[:, 0],  # weight shifts
+    root = dict(yaw=listener_yaw(active, rng) + 0.02 * smooth_noise(rng, n, 1.0 * FPS)[:, 0],
+                roll=0.015 * smooth_noise(rng, n, 2.0 * FPS)[:, 0],  # weight shifts
                 pitch=0.03 * lift * amp ** 0.5)  # leaning in while talking
     for side in range(2):
         a = arms[side]
-        noise = _smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
-        wrist_noise = _smooth_noise(rng, n, IDLE["wrist"][1] * FPS, 3) * IDLE["wrist"][0] * np.sqrt(amp)
+        noise = smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
+        wrist_noise = smooth_noise(rng, n, IDLE["wrist"][1] * FPS, 3) * IDLE["wrist"][0] * np.sqrt(amp)
         noise[:, 3:6] += wrist_noise
         for i, k in enumerate(arm_keys):
             a[k] += noise[:, i]
@@ -166,7 +160,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
         a["elbow"] += REST["elbow"] + body["elbow"] + 0.4 * weights[side] * lift * amp ** 0.5
         a["inward"] += INWARD_TALK * weights[side] * lift
         if em.tremor:
-            shake = _smooth_noise(rng, n, 1.0, 3) - _smooth_noise(rng, n, 4.0, 3) * 0.5
+            shake = smooth_noise(rng, n, 1.0, 3) - smooth_noise(rng, n, 4.0, 3) * 0.5
             a["wflex"] += em.tremor * 2 * shake[:, 0]
             a["elbow"] += em.tremor * shake[:, 1]
             a["flex"] += em.tremor * 0.5 * shake[:, 2]
@@ -237,16 +231,16 @@ def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dic
     poses = np.zeros((n, NUM_JOINTS, 3))
     # the root: turned toward a listener, sharing the posture's lean, shifting its weight
     poses[:, 0] = np.stack([ROOT_LEAN * body["lean"] + root["pitch"], root["yaw"], root["roll"]], axis=1)
-    idle = {k: _smooth_noise(rng, n, sigma * FPS, 3) * a for k, (a, sigma) in IDLE.items()}
+    idle = {k: smooth_noise(rng, n, sigma * FPS, 3) * a for k, (a, sigma) in IDLE.items()}
     for k, j in enumerate(SPINE):  # sway, twist and lean that never stop, strongest low in the spine
         poses[:, j] = np.stack([(1.0 - ROOT_LEAN) * body["lean"], body["twist"], body["side"]], axis=1) / 3.0
         # (lean, twist, side): little side bend, which would carry the chest into a hanging arm
-        poses[:, j] += (_smooth_noise(rng, n, IDLE["spine"][1] * FPS, 3) * IDLE["spine"][0] * (1.0 - 0.25 * k)
+        poses[:, j] += (smooth_noise(rng, n, IDLE["spine"][1] * FPS, 3) * IDLE["spine"][0] * (1.0 - 0.25 * k)
                         * np.array([1.0, 1.0, 0.3]))
     poses[:, NECK] = np.stack([0.4 * body["head_pitch"], 0.5 * body["head_turn"], 0.3 * body["head_tilt"]], 1)
     poses[:, HEAD] = np.stack([0.6 * body["head_pitch"], 0.5 * body["head_turn"], 0.7 * body["head_tilt"]], 1)
     poses[:, NECK] += idle["neck"]
-    poses[:, HEAD] += _smooth_noise(rng, n, IDLE["neck"][1] * FPS, 3) * IDLE["neck"][0]
+    poses[:, HEAD] += smooth_noise(rng, n, IDLE["neck"][1] * FPS, 3) * IDLE["neck"][0]
     jaw = np.clip(gaussian_filter1d(energy / (np.percentile(energy, 95) + 1e-9), 1.0), 0.0, 1.3)
     poses[:, JAW, 0] = 0.12 * jaw
     mirror = (np.array([1.0, 1.0, 1.0]), np.array([1.0, -1.0, -1.0]))
@@ -266,7 +260,7 @@ def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dic
                   * np.clip(flex / 0.3, 0.0, 1.0))  # and the arm's reach forward, so the hand stays in front
         turn = Rotation.from_rotvec(np.stack([inward, np.zeros(n), np.zeros(n)], 1))
         poses[:, SHOULDER[side]] = (forward * down * turn).as_rotvec() * m
-        collar = _smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
+        collar = smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
         poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
         poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
         poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m

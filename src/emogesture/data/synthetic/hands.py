@@ -16,7 +16,9 @@ The right hand mirrors the left (the Y and Z rotation components negated).
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
+
+from emogesture.data.synthetic.factors import smooth_noise
+from emogesture.types import FPS
 
 FINGERS = ("index", "middle", "pinky", "ring", "thumb")  # SMPL-X order in each hand, 3 joints each
 JOINT_SHARE = np.array([0.85, 1.0, 0.7])  # a finger's curl at its proximal, middle and distal joint
@@ -58,8 +60,7 @@ def rest_channels(n: int, speaker_curl: float, emotion: str, rng: np.random.Gene
     x = np.zeros((n, 6))
     x[:, :5] = REST_CURL + speaker_curl + tension
     x[:, 4] *= 0.6  # the thumb curls less
-    noise = gaussian_filter1d(rng.standard_normal((n + 200, 6)), IDLE_CURL[1] * 30, axis=0, mode="wrap")[100:-100]
-    x += IDLE_CURL[0] * noise / (noise.std(axis=0, keepdims=True) + 1e-9) * np.array([1, 1, 1, 1, 0.7, 0.5])
+    x += IDLE_CURL[0] * smooth_noise(rng, n, IDLE_CURL[1] * FPS, 6) * np.array([1, 1, 1, 1, 0.7, 0.5])
     return x
 
 
