@@ -1,6 +1,6 @@
 """Render speed of the MP4 preview: wall seconds of `save_mp4` per second of animation.
 
-The issue's target: at most 0.5 s of compute per second of animation on a 2-core machine. Motion is
+The target: at most 0.5 s of compute per second of animation on a 2-core machine. Motion is
 smooth random rotations on every joint (speed of rendering does not depend on which motion).
 Usage: python bench/render_speed.py [SECONDS]   (default 20)
 """

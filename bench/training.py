@@ -82,7 +82,7 @@ def module_and_items(model: str, preset: str, batch: int | None = None):
 
     def item(g):
         latents = [torch.randn(cfg.model.denoiser.cond_dim, generator=g) for _ in range(conds)]
-        # a model that hears the speech's timing (the tiny preset since issue 18) reads its stream last
+        # a model that hears the speech's timing (the tiny preset's does) reads its stream last
         stream = [torch.rand(frames, cfg.model.timing_features, generator=g)] if cfg.model.hears_timing else []
         return {"motion": torch.randn(frames, d, generator=g) * 0.3,
                 "emotion": torch.randint(0, 8, (), generator=g), "conditions": latents + stream}

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 4 experiment: train the motion feature extractor M (tiny) on the default synthetic corpus and
+# Gesture evaluation experiment: train the motion feature extractor M (tiny) on the default synthetic corpus and
 # score the ground truth and the built-in baselines on held-out texts (paper Table 1 layout).
 # Writes experiments/reports/gesture_eval/gesture_test.{json,md} and confusion PNGs.
 # Usage: experiments/gesture_evaluation.sh [STEPS]   (default 600)

@@ -8,8 +8,8 @@
 # Comparisons are made on the val split (calibrated on, never trained on); the test split is scored
 # once, for the report (paper Table 1 layout plus the prior's reconstruction error, emotion edits and a
 # 65-s long-audio seam check, each check able to fail).
-# "Ours without the stream" is the tiny design before issue 18 (48 cosines, the decoder deaf to timing,
-# no wrist path).
+# "Ours without the stream" is the tiny design before its decoder heard the speech's timing (48 cosines,
+# the decoder deaf to timing, no wrist path).
 # Four trainings side by side, one CPU thread each (about 60 min on 2 cores), then the evaluations:
 # val with 4 sampling seeds, test once.
 # Writes experiments/reports/gesture_model/{val,test}/, val_seeds.md and training_time.txt.
@@ -48,7 +48,7 @@ train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> 
     echo "$name: $(( $(date +%s) - start )) s for $steps steps (1 thread, beside other trainings$resumed)" \
         > "$WORK/gesture_$name.time"
 }
-# "ours without the stream" (issue 18): the tiny design before it, 48 cosines, no timing stream, no wrist path
+# "ours without the stream": the tiny design before the timing stream, 48 cosines, no timing stream, no wrist path
 train disjoint disjoint "$JOINT_STEPS" & train no_prior no_prior "$STEPS" & train no_audio no_audio "$STEPS" &
 train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set model.vae.timing_features=0 \
     --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 \

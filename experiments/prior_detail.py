@@ -1,4 +1,4 @@
-"""What a gesture model's motion prior keeps of each joint's rotation (issue 17: the slow wrists).
+"""What a gesture model's motion prior keeps of each joint's rotation (why the generated wrists turned slowly).
 
 For the first WINDOWS windows of a split: the angular speed of each joint's local rotation (rad per
 frame, `eval.motion_stats.joint_angular_speed`) of the ground truth, of the ground truth low-passed
@@ -10,8 +10,9 @@ group's moving columns). No sampling: the latents are the motion's own.
 
 Usage: python experiments/prior_detail.py CACHE [NAME=]MODEL [...] [--split val] [--windows 200] > REPORT.md
 (NAME labels the model's rows; without it, the path does.)
-Session 20: experiments/reports/prior_detail/val.md (the bundle, and the run with losses.finger_features=0.1).
-Session 21: experiments/reports/prior_detail/prior_only_400_val.md (priors trained alone for 400 steps).
+Reports: experiments/reports/prior_detail/val.md (the bundle, and the run with losses.finger_features=0.1; 2026-11-24,
+commit 2ce0daa) and experiments/reports/prior_detail/prior_only_400_val.md (priors trained alone for 400 steps;
+2026-11-24, commits 1166d7b and f45fdf7).
 """
 
 from __future__ import annotations

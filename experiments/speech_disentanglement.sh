@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 3 experiment: the tiny speech disentangler on the default synthetic corpus (CPU, <= 30 min of
+# Speech disentanglement experiment: the tiny speech disentangler on the default synthetic corpus (CPU, <= 30 min of
 # training on the train texts), evaluated on the val texts to compare settings, and on the test texts
 # once for the setting that is reported. Writes experiments/reports/speech_tiny_<NAME>/speech_<SPLIT>.*
 # (JSON, markdown with checks, PNGs) and the training time.

@@ -1,4 +1,4 @@
-"""The generation settings of a gesture model whose decoder hears the speech's timing (issue 18),
+"""The generation settings of a gesture model whose decoder hears the speech's timing,
 swept on the val texts: timing guidance w (``vae.timing_guidance``), output smoothing σ in frames
 (``vae.output_smoothing``), the output low-pass's cutoff c in Hz (``vae.output_lowpass_hz``, 0 = off)
 and the residual-noise scale r (``diffusion.residual_scale``). The same trained model, the same seeds

@@ -16,7 +16,7 @@ from emogesture.data.beat import (
 )
 from emogesture.errors import InputFileError
 
-# Range boundaries of every emotion (SPEC §6), inclusive.
+# Range boundaries of every emotion (docs/design.md, 'Data'), inclusive.
 BOUNDARIES = {
     "neutral": (1, 64),
     "happiness": (65, 72),

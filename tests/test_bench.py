@@ -1,7 +1,7 @@
 """Smoke test of bench/training.py: the training step it times runs on the presets' current inputs.
 
-(It crashed on the tiny gesture model from issue 18 on, whose conditions end with the timing stream,
-and nothing noticed: `make bench` is not part of the test suite.)"""
+(It once crashed on the tiny gesture model, whose conditions end with the timing stream, and nothing
+noticed: `make bench` is not part of the test suite.)"""
 
 import sys
 from pathlib import Path

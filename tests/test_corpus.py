@@ -1,4 +1,5 @@
-"""The synthetic corpus (SPEC §6, §7): layout, determinism, resume, and that its factors are real.
+"""The synthetic corpus (docs/design.md, 'Data' and 'Synthetic corpus'): layout, determinism, resume, and that
+its factors are real.
 
 One small corpus (4 speakers × 8 emotions × 3 texts, takes ≥ 8 s, 2 worker processes) is built
 once for the module; a 1-speaker corpus (8 takes, in-process) checks determinism and resuming.
@@ -324,8 +325,8 @@ def test_motion_follows_the_speech_at_a_persons_level(corpus):
     assert own.mean() <= 0.15  # corpus version 4 ticked on every syllable: about 0.2 on these short takes
 
 
-# Real conversational motion capture (BEAT, two speakers; issue 17's table): mean angular speed of each joint's
-# local rotation, rad per 30-fps frame, (speaker 2, speaker 1).
+# Real conversational motion capture (BEAT, two speakers; docs/design.md, 'How real motion moves'): mean angular
+# speed of each joint's local rotation, rad per 30-fps frame, (speaker 2, speaker 1).
 REAL_ANGULAR_SPEED = {
     "spine1": (0.0072, 0.0044), "spine2": (0.0062, 0.0034), "spine3": (0.0037, 0.0024), "neck": (0.0105, 0.0051),
     "head": (0.0099, 0.0061), "left_collar": (0.0147, 0.0056), "right_collar": (0.0137, 0.0047),
@@ -337,7 +338,7 @@ REAL_ANGULAR_SPEED = {
 @pytest.mark.slow
 def test_motion_moves_like_real_motion(corpus):
     """Every upper-body joint turns within [0.5 × the slower, 1.5 × the faster] real speaker; hand speed and
-    posture within issue 17's ranges (wrists pooled)."""
+    posture within the ranges of real motion (wrists pooled)."""
     from emogesture.eval.motion_stats import file_statistics
 
     root, _ = corpus

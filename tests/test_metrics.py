@@ -1,4 +1,4 @@
-"""Evaluation metrics (SPEC §8): each test checks a value that a wrong implementation would miss."""
+"""Evaluation metrics (docs/design.md, 'Metrics'): each test checks a value that a wrong implementation would miss."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Motion statistics (issue 17): angular speed, wrist speed and posture on motion with known answers."""
+"""Motion statistics (docs/design.md, 'Metrics'): angular speed, wrist speed and posture on motion with known answers."""
 
 import json
 import subprocess

@@ -1,4 +1,4 @@
-"""Model files: safetensors weights + a JSON of config, statistics and version (SPEC §9).
+"""Model files: safetensors weights + a JSON of config, statistics and version (docs/design.md, 'Conventions').
 
 A model is stored as two files side by side, ``<name>.safetensors`` and ``<name>.json``, saved as one
 (see :func:`save_model`: a save killed at any point leaves the old model or the new one). The JSON

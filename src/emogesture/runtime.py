@@ -121,7 +121,7 @@ def linear_gelu(layer: nn.Linear, x: torch.Tensor, approximate: str = "none") ->
     :func:`bf16_weights` (packed, if it packed them). None elsewhere: the caller runs the two steps.
 
     Writing the product's bf16 output and then reading it again for the GELU took 4 % of a paper
-    encoder's time (bench/results/cpu.md, session 28)."""
+    encoder's time (bench/results/cpu.md, "bf16 generation nearer its floor")."""
     weight = layer.__dict__.get("packed_weight")
     if weight is None and layer.weight.dtype == torch.bfloat16:
         weight = layer.weight
@@ -157,8 +157,8 @@ def bf16_weights(precision: str, *modules: nn.Module, pack: bool = False):
     libraries for CPUs do: a plain product repacks the weight at every call. It pays where each layer
     runs many times, as the denoiser does in a sampling loop: the paper denoiser's 180-row products ran
     10–15 % faster, and packing its 87 M weights took 0.2 s. Packing the paper speech model took 0.7–1.4 s,
-    as much as it saved on a 60-s clip (bench/results/cpu.md, session 28). The numbers are autocast's to
-    bf16 rounding (the same products, summed in another order).
+    as much as it saved on a 60-s clip (bench/results/cpu.md, "bf16 generation nearer its floor"). The
+    numbers are autocast's to bf16 rounding (the same products, summed in another order).
     """
     saved, patched = [], []
     try:

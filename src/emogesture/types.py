@@ -15,7 +15,7 @@ class SMPLXSequence:
     """An SMPL-X animation in the BEAT2 convention.
 
     Attributes:
-        poses: ``[T, 55, 3]`` float32 axis-angle rotations, SMPL-X joint order (SPEC §3).
+        poses: ``[T, 55, 3]`` float32 axis-angle rotations, SMPL-X joint order (docs/design.md, 'Motion representation').
         trans: ``[T, 3]`` float32 root translation in metres (Y-up).
         betas: ``[B]`` float32 shape coefficients (BEAT2 stores 300).
         expressions: ``[T, E]`` float32 face expression coefficients (BEAT2 stores 100).

@@ -1,4 +1,5 @@
-"""Audio front end (SPEC §1): loading, Kaldi fbank, windows and normalisation, augmentation, onsets.
+"""Audio front end (docs/design.md, 'Audio front end'): loading, Kaldi fbank, windows and normalisation,
+augmentation, onsets.
 
     waveform, sr = load_audio("speech.wav")            # float32 mono 16 kHz, mean removed
     fbank = kaldi_fbank(waveform)                      # [frames, 128] log-mel, torch float32

@@ -1,4 +1,5 @@
-"""Training-only fbank augmentation (SPEC §1): SpecAugment masks, Gaussian noise, circular time shift.
+"""Training-only fbank augmentation (docs/design.md, 'Audio front end'): SpecAugment masks, Gaussian noise,
+circular time shift.
 
 Applied to normalised fbank windows in the order of AST's data loader: one frequency mask and one time
 mask (set to ``mask_value``, 0 = the mean in the normalised domain), then additive Gaussian noise, then a

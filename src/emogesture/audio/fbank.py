@@ -1,4 +1,4 @@
-"""Kaldi-compatible log-mel filterbank features in torch (SPEC §1).
+"""Kaldi-compatible log-mel filterbank features in torch (docs/design.md, 'Audio front end').
 
 Kaldi's ``compute-fbank-feats`` algorithm, step for step (``feat/feature-window.cc``,
 ``feat/feature-fbank.cc``, ``feat/mel-computations.cc``):
@@ -53,7 +53,8 @@ WINDOW_TYPES: tuple[str, ...] = ("hamming", "hann", "hanning", "povey", "rectang
 
 @dataclass(frozen=True)
 class FbankConfig:
-    """Kaldi fbank options (SPEC §1 defaults: 128 bins, 25 ms / 10 ms, dither 0, Hamming, 20 Hz..Nyquist).
+    """Kaldi fbank options (defaults as in docs/design.md, 'Audio front end': 128 bins, 25 ms / 10 ms, dither 0,
+    Hamming, 20 Hz..Nyquist).
 
     ``high_freq <= 0`` is an offset from Nyquist (0 = Nyquist), as in Kaldi. With ``use_energy`` the log
     energy becomes column 0 (Kaldi's order without ``--htk-compat``) and the output has ``num_mel_bins + 1``

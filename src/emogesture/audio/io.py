@@ -1,4 +1,5 @@
-"""Reading speech audio (SPEC §1): any libsndfile format, detected by content; ffmpeg as the fallback.
+"""Reading speech audio (docs/design.md, 'Audio front end'): any libsndfile format, detected by content; ffmpeg
+as the fallback.
 
 ``load_audio`` returns a float32 mono waveform at 16 kHz with its mean removed. The container/codec is
 detected from the file's bytes, never from its name (BEAT ships 32-bit float WAV and MP3 data named
@@ -148,7 +149,7 @@ def resample(waveform: np.ndarray, orig_sr: int, target_sr: int) -> np.ndarray:
 def load_audio(
     path: str | PathLike[str], target_sr: int = TARGET_SAMPLE_RATE, *, remove_mean: bool = True
 ) -> tuple[np.ndarray, int]:
-    """Read a speech file as a float32 mono waveform ``[N]`` at ``target_sr`` (SPEC §1).
+    """Read a speech file as a float32 mono waveform ``[N]`` at ``target_sr`` (docs/design.md, 'Audio front end').
 
     Steps: decode (libsndfile, else ffmpeg) to float in ``[-1, 1]``; mix channels down by their mean;
     resample with :func:`scipy.signal.resample_poly`; subtract the waveform mean (``remove_mean``).

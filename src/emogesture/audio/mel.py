@@ -6,9 +6,9 @@ Two constructions are provided, because two references are matched:
   ``1127 ln(1 + f/700)``, bin edges equally spaced in mel between ``low_freq`` and ``high_freq``, and the
   triangles evaluated *in the mel domain* at each FFT bin's mel value, unnormalised (peak 1). The FFT bin
   at Nyquist never gets weight (Kaldi loops over ``padded_window_size / 2`` bins). Used by the fbank
-  features (SPEC §1).
+  features (docs/design.md, 'Audio front end').
 * :func:`librosa_mel_banks` — ``librosa.filters.mel`` defaults: Slaney mel scale, triangles in the Hz
-  domain, Slaney area normalisation. Used by the onset envelope (SPEC §8, BA), whose reference is
+  domain, Slaney area normalisation. Used by the onset envelope (BA, docs/design.md, 'Metrics'), whose reference is
   ``librosa.onset.onset_detect``.
 
 Filterbanks are cached and returned as read-only float64 arrays of shape ``[num_bins, n_fft // 2 + 1]``.

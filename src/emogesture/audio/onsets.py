@@ -1,4 +1,5 @@
-"""Onset strength, onset detection and per-frame energy (SPEC §7 gesture timing, §8 Beat Align).
+"""Onset strength, onset detection and per-frame energy (gesture timing and beat align: docs/design.md,
+'Synthetic corpus' and 'Metrics').
 
 The reference is librosa (not a dependency): :func:`onset_strength` follows ``librosa.onset.onset_strength``
 with its defaults — power mel spectrogram (n_fft 2048, periodic Hann, centred frames with zero padding,

@@ -1,7 +1,7 @@
 """The speech's timing stream: loudness and onset strength of the fbank at the motion's frame rate.
 
-A gesture model that hears timing (issue 18) reads, per 1/30-s motion frame of a 10-s window, two numbers
-of the normalised log-mel filterbank that window was cut from (:func:`emogesture.audio.fbank_windows`):
+A gesture model that hears timing (the tiny preset's decoder does) reads, per 1/30-s motion frame of a 10-s
+window, two numbers of the normalised log-mel filterbank that window was cut from (:func:`emogesture.audio.fbank_windows`):
 
 - ``loudness``: the mean over mel bands;
 - ``onset_strength``: the half-wave rectified frame-to-frame increase, mean over mel bands (spectral

@@ -1,4 +1,4 @@
-"""Fbank normalisation and the fixed 10 s / 1024-frame model windows (SPEC §1).
+"""Fbank normalisation and the fixed 10 s / 1024-frame model windows (docs/design.md, 'Audio front end').
 
 The audio encoders see ``[1024, bins]`` windows of *normalised* fbank, ``(x - mean) / (2 std)``, so zero
 padding in the normalised domain is padding with the dataset mean. At the 10 ms shift, 10 s of audio give

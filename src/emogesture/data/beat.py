@@ -2,7 +2,7 @@
 
 Take names look like ``<spk>_<name>_<type>_<start>_<end>`` (e.g. ``2_scott_0_103_103``). Type 0 is
 English speech, 1 English conversation; the take id (``start``) of a speech take gives its emotion
-(SPEC §6). Conversations are neutral.
+(docs/design.md, 'Data'). Conversations are neutral.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ SPEAKERS: dict[int, str] = {
     28: "tiffnay", 29: "hanieh", 30: "katya",
 }
 TAKE_TYPES: dict[int, str] = {0: "english_speech", 1: "english_conversation"}
-# The authors' actor split (SPEC §6).
+# The authors' actor split (docs/design.md, 'Data').
 ACTOR_SPLIT: dict[str, tuple[str, ...]] = {
     "val": ("nidal", "zhang", "carlos", "itoi", "jaime", "li"),
     "test": ("luqi", "hailing", "kexin", "goto", "tiffnay", "hanieh"),
@@ -130,7 +130,7 @@ def write_split_csv(path: str | PathLike[str], splits: dict[str, str]) -> None:
 
 
 def actor_split(take: str | TakeInfo) -> str:
-    """The authors' split by actor: val/test speakers as in SPEC §6, everyone else train."""
+    """The authors' split by actor: val/test speakers as in docs/design.md, 'Data'; everyone else train."""
     info = take if isinstance(take, TakeInfo) else parse_take_name(take)
     for split, speakers in ACTOR_SPLIT.items():
         if info.speaker in speakers:

@@ -3,7 +3,8 @@
 A cache directory holds, per split, memory-mappable arrays of aligned 10-s windows:
 
 - ``<split>/fbank.npy``  ``[W, 1024, n_mels]`` float16, normalised with the cache's fbank statistics;
-- ``<split>/motion.npy`` ``[W, 300, D]`` float32 raw motion features (6D rotations, SPEC §3);
+- ``<split>/motion.npy`` ``[W, 300, D]`` float32 raw motion features (6D rotations: docs/design.md,
+  'Motion representation');
 - ``<split>/sem.npy``    ``[W, 300]`` float32 per-frame semantic scores (0 where unknown);
 - ``<split>/windows.csv`` one row per window: take, speaker_id, emotion, text, start_s.
 

@@ -50,7 +50,8 @@ class WaveWindowAugmenter:
 
 
 class SpeechQuadrupleDataset(Dataset):
-    """Seeded quadruples ``(c1 s1, c2 s1, c1 s2, c2 s2)`` of fbank windows (SPEC §2).
+    """Seeded quadruples ``(c1 s1, c2 s1, c1 s2, c2 s2)`` of fbank windows (docs/design.md, 'Speech
+    disentanglement model').
 
     Item ``i`` of epoch ``e`` is drawn from ``default_rng([seed, e, i])``: reproducible, and
     independent of worker count or order. Each item is a dict with ``fbank [4, 1024, n_mels]``

@@ -1,6 +1,6 @@
 """Preparation recipe: a BEAT2-layout root -> a windows cache of aligned fbank and motion windows.
 
-An explicit, idempotent step (SPEC §6): re-running on a complete cache does nothing, and an
+An explicit, idempotent step (docs/design.md, 'Data'): re-running on a complete cache does nothing, and an
 interrupted run resumes. Work happens in two stages:
 
 1. per take (resumable): decode audio, Kaldi fbank, motion features, semantic scores ->

@@ -1,4 +1,4 @@
-"""Quadruple sampling for the speech disentangler (SPEC §2, paper supp. B.4).
+"""Quadruple sampling for the speech disentangler (docs/design.md, 'Speech disentanglement model'; paper supp. B.4).
 
 A training sample is four windows ``(a1, a2, a3, a4) = (c1 s1, c2 s1, c1 s2, c2 s2)``: one emotion,
 two texts ``c1 != c2`` of that emotion, two speakers ``s1 != s2`` who both spoke both texts. The

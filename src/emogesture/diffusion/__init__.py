@@ -1,4 +1,5 @@
-"""Diffusion in the motion latent space (SPEC §4): noise schedulers and the sampling loop.
+"""Diffusion in the motion latent space (docs/design.md, 'Gesture generation model'): noise schedulers and the
+sampling loop.
 
 Kept apart from the networks (diffusers' separation of model, scheduler and loop): the loop takes any
 callable ``denoiser(z_t [B, D], t [B], conditions) -> [B, D]`` whose output is what the

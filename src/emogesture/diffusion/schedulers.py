@@ -1,4 +1,5 @@
-"""Noise schedulers for the latent diffusion (SPEC §4): DDPM for training, DDIM for sampling.
+"""Noise schedulers for the latent diffusion (docs/design.md, 'Gesture generation model'): DDPM for training,
+DDIM for sampling.
 
 Every scheduler field is passed to ``diffusers`` explicitly, because its defaults differ from the
 paper's setting (DDIM: ``clip_sample=True``, ``set_alpha_to_one=True``, ``steps_offset=0``; the
@@ -23,7 +24,7 @@ TIMESTEP_SPACINGS = ("leading", "trailing", "linspace")
 
 @dataclass
 class DiffusionConfig:
-    """The diffusion setting; defaults are the paper's (SPEC §4).
+    """The diffusion setting; defaults are the paper's (docs/design.md, 'Gesture generation model').
 
     Training: DDPM, 1000 steps, "scaled_linear" betas 0.00085 -> 0.012 (β_t = (linspace(√β0, √β1))²),
     ε-prediction, fixed-small variance. Sampling: DDIM, 50 steps with "leading" spacing and

@@ -1,4 +1,4 @@
-"""Evaluation metrics (SPEC §8): FGD, Div, GA, BA, SRGR, jerk, and report figures.
+"""Evaluation metrics (docs/design.md, 'Metrics'): FGD, Div, GA, BA, SRGR, jerk, and report figures.
 
 Pure functions of numpy arrays; the feature extractor M and the audio onset detector live elsewhere and
 hand their outputs (features, logits, onset times) to these functions.

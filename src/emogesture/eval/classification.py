@@ -84,8 +84,8 @@ def classification_report(y_true: np.ndarray, y_pred: np.ndarray, num_classes: i
 def gesture_accuracy(logits_or_pred: np.ndarray, labels: np.ndarray) -> float:
     """GA: top-1 accuracy of logits ``[N, C]`` (argmax) or predicted labels ``[N]`` against ``labels`` ``[N]``.
 
-    For emotion edits, ``labels`` are the emotion-audio's labels (SPEC §8). Raises ``ValueError`` for
-    empty input or a length mismatch.
+    For emotion edits, ``labels`` are the emotion-audio's labels (edit GA in docs/design.md, 'Metrics').
+    Raises ``ValueError`` for empty input or a length mismatch.
     """
     pred = predictions(logits_or_pred)
     true = _as_labels(labels, "labels")

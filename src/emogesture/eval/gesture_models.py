@@ -225,7 +225,7 @@ def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_sec
 SEAM_SEEDS = 4
 #: Long stretches whose seams are pooled, starting at takes spread evenly over the split
 #: (:func:`long_audio_stretches`). One 65-s stretch is too little motion to read a 99th percentile: on four
-#: stretches of the val texts the ground truth's own ratio read 0.79, 1.06, 1.05 and 0.94 (session 24).
+#: stretches of the val texts the ground truth's own ratio read 0.79, 1.06, 1.05 and 0.94 (commit 8f8c629).
 LONG_AUDIO_STRETCHES = 4
 
 
@@ -406,11 +406,11 @@ def gesture_checks(rows: dict, model: str, ablations: list[str], edit_row: str |
     if "GT, mismatched audio" in rows:
         report("FGD / FGD(GT, mismatched audio)", ours["FGD"] / max(rows["GT, mismatched audio"]["FGD"], 1e-12))
     if np.isfinite(gt["BA"]):
-        report("BA / BA(GT) (no check: mismatched audio scores alike, see issue 18)", ours["BA"] / gt["BA"])
+        report("BA / BA(GT) (no check: mismatched audio scores alike, see the rhythm gain)", ours["BA"] / gt["BA"])
         if "GT, mismatched audio" in rows:
             report("BA(GT, mismatched audio) / BA(GT)", rows["GT, mismatched audio"]["BA"] / gt["BA"])
     report("Div / Div(GT) (no check: every source but the mean pose lies within 20 %)", ours["Div"] / gt["Div"])
-    if "rhythm" in gt:  # issue 18: a measure that can fail, and a model that follows the speech's timing
+    if "rhythm" in gt:  # rhythm: a measure that can fail, and a model that follows the speech's timing
         factor, noise = RHYTHM_CONSTANTS["discrimination_factor"], RHYTHM_CONSTANTS["noise_factor"]
         g = gt["rhythm"]
         check(f"rhythm: the ground truth's gain / its spread >= {factor:g}", g["gain_over_spread"], factor)

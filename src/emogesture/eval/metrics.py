@@ -1,4 +1,4 @@
-"""Evaluation metrics of SPEC §8 as pure functions of numpy arrays.
+"""Evaluation metrics of docs/design.md, 'Metrics', as pure functions of numpy arrays.
 
 FGD (Fréchet distance of feature sets), Div (mean pairwise L2 distance), BA (beat align), SRGR
 (semantic-weighted joint recall), jerk and speed. Nothing here reads files or touches the global random
@@ -15,7 +15,7 @@ from scipy.signal import argrelextrema
 
 from emogesture.motion.skeleton import ARM_JOINTS, UPPER_BODY_JOINTS, WRIST_JOINTS
 
-# Joint groups (SPEC §3, §8) come from the one skeleton table.
+# Joint groups (docs/design.md, 'Motion representation' and 'Metrics') come from the one skeleton table.
 METRIC_CONSTANTS: dict = {
     "fps": 30.0,
     "fgd_eps": 1e-6,
@@ -161,7 +161,7 @@ def beat_align(motion_beats_s: np.ndarray, audio_onsets_s: np.ndarray, sigma: fl
                direction: str = _C["beat_direction"]) -> float:
     """Beat-align score in [0, 1] between motion beats ``[B]`` and audio onsets ``[O]`` (seconds).
 
-    ``direction="motion_to_audio"`` (default, SPEC BA): mean over motion beats of
+    ``direction="motion_to_audio"`` (default, the BA of docs/design.md, 'Metrics'): mean over motion beats of
     ``exp(-d^2 / (2 sigma^2))``, ``d`` = distance to the nearest audio onset.
     ``"audio_to_motion"`` swaps the roles (mean over onsets, nearest motion beat; EMAGE's "BC").
     Empty inputs: no source events -> ``nan`` (mean over an empty set; aggregate with ``np.nanmean``);

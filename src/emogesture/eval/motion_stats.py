@@ -2,7 +2,7 @@
 
 Pure functions of SMPL-X pose arrays and joint positions (no files): the statistics behind
 ``emogesture motion-stats``, so the synthetic corpus, a model's output and a user's motion capture can
-be held against each other and against real conversational motion (issue 17's table).
+be held against each other and against real conversational motion (docs/design.md, 'How real motion moves').
 
 - **Angular speed** of a joint: the geodesic angle between its local rotation in consecutive frames,
   radians per frame, averaged over frames.

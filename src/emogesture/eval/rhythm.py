@@ -1,4 +1,5 @@
-"""Rhythm: how well arm motion follows the speech's timing, as a gain over mismatched audio (issue 18).
+"""Rhythm: how well arm motion follows the speech's timing, as a gain over mismatched audio
+(docs/design.md, 'Metrics').
 
 The measure, in pure functions of numpy arrays:
 

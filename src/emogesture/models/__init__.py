@@ -1,4 +1,5 @@
-"""Neural networks: the speech disentanglement model (SPEC §2) and its building blocks.
+"""Neural networks: the speech disentanglement model (docs/design.md, 'Speech disentanglement model') and its
+building blocks.
 
 Models never read files; :mod:`emogesture.models.pretrained` turns a weights file into tensors.
 """

@@ -1,4 +1,5 @@
-"""Latent denoiser Δ (SPEC §4, paper §3.3 "Conditional denoising process", §4 "Denoiser").
+"""Latent denoiser Δ (docs/design.md, 'Gesture generation model'; paper §3.3 "Conditional denoising process",
+§4 "Denoiser").
 
 Tokens ``[z_t, SE(t), c, e, s]``, each projected to the model width (SE = sinusoidal timestep embedding
 followed by a two-layer MLP), pass through the same skip-transformer shape as the VAE encoder (learnable
@@ -6,7 +7,7 @@ positional embedding in every attention layer); the FIRST output token, projecte
 the prediction: the noise ε̂ in the paper (the scheduler's ``prediction_type`` says what it is). With
 ``num_conditions = 1`` the single latent ``m`` of the no-disentanglement ablation replaces ``(c, e, s)``.
 
-Beyond the paper (issue 18; off in both presets unless ``timing_tokens > 0``): a time-resolved speech
+Beyond the paper (off in both presets unless ``timing_tokens > 0``): a time-resolved speech
 stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, 300, 2]`` per 10-s window) enters as
 ``timing_tokens`` more tokens, token ``k`` holding the stream of frames ``[k·span, (k+1)·span)`` through its
 own Linear (so that attention spread evenly over them is already a full linear map of the stream). The

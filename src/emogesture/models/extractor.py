@@ -1,4 +1,4 @@
-"""Motion feature extractor M (SPEC §8, paper supp. D): judges generated motion.
+"""Motion feature extractor M (docs/design.md, 'Metrics'; paper supp. D): judges generated motion.
 
 A transformer encoder over motion-feature windows with a [CLS] token, trained to classify emotion
 (cross-entropy). Its [CLS] output features feed FGD and Div; its classifier gives GA.

@@ -1,4 +1,5 @@
-"""Optional pretrained initialisation of the audio ViTs (SPEC §2): DeiT (timm layout) or AST checkpoints.
+"""Optional pretrained initialisation of the audio ViTs (docs/design.md, 'Speech disentanglement model'): DeiT
+(timm layout) or AST checkpoints.
 
 The only module of :mod:`emogesture.models` that reads a file, and only a local one given by the user:
 nothing is ever downloaded. ``load_deit_state_dict`` reads tensors; ``adapt_*`` turn an image (DeiT) or

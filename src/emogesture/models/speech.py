@@ -1,4 +1,5 @@
-"""Speech disentanglement model (SPEC §2, supp. B): three ViT encoders, a fusion, a filterbank decoder.
+"""Speech disentanglement model (docs/design.md, 'Speech disentanglement model'; paper supp. B): three ViT
+encoders, a fusion, a filterbank decoder.
 
 ``fbank [B, 1024, 128]`` -> content, emotion, style latents ``[B, 256]`` each (plus emotion and speaker
 logits) -> fusion of the three latents into one embedding -> decoder back to ``[B, 1024, 128]``.
@@ -193,7 +194,7 @@ class FilterbankDecoder(nn.Module):
 
 
 class SpeechDisentangler(nn.Module):
-    """E_c, E_e, E_s + fusion + decoder (SPEC §2)."""
+    """E_c, E_e, E_s + fusion + decoder (docs/design.md, 'Speech disentanglement model')."""
 
     def __init__(self, config: SpeechModelConfig) -> None:
         super().__init__()

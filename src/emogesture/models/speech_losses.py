@@ -1,4 +1,5 @@
-"""Quadruple losses of the speech disentanglement model (SPEC §2, supp. B.4).
+"""Quadruple losses of the speech disentanglement model (docs/design.md, 'Speech disentanglement model';
+paper supp. B.4).
 
 A training sample is a quadruple ``(a1, a2, a3, a4) = (c1 s1, c2 s1, c1 s2, c2 s2)``: one emotion, two
 texts (contents) c1, c2 and two speakers s1, s2. Indices below are 0-based: window ``k`` of a quadruple.
@@ -58,7 +59,7 @@ LOSS_PRESETS = ("full", "emotion_only", "style_only", "adversarial")
 
 @dataclass
 class SpeechLossConfig:
-    """Weight of each term (SPEC §2: all 1). A weight of 0 switches the term off: it is not computed."""
+    """Weight of each term (all 1 in the paper). A weight of 0 switches the term off: it is not computed."""
 
     self_recon: float = 1.0
     content: float = 1.0

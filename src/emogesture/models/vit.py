@@ -1,4 +1,5 @@
-"""A DeiT-style distilled Vision Transformer over a log-mel filterbank (SPEC §2, supp. B.2).
+"""A DeiT-style distilled Vision Transformer over a log-mel filterbank (docs/design.md, 'Speech disentanglement
+model'; paper supp. B.2).
 
 The filterbank ``[B, 1024 (time), 128 (freq)]`` is treated as a one-channel image of height = frequency
 and width = time, i.e. ``[B, 1, 128, 1024]``. Overlapping 16×16 patches with stride 10 give a grid of

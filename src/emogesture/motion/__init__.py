@@ -1,4 +1,5 @@
-"""Motion representation: rotations, the SMPL-X skeleton, model features, bodies and npz files (SPEC §3)."""
+"""Motion representation: rotations, the SMPL-X skeleton, model features, bodies and npz files (docs/design.md,
+'Motion representation')."""
 
 from emogesture.motion.body import SkeletonBody, SMPLXBody, load_body
 from emogesture.motion.features import (

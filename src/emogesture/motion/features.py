@@ -1,4 +1,5 @@
-"""Model features: SMPL-X poses <-> per-frame 6D feature vectors, and their normalisation (SPEC §3)."""
+"""Model features: SMPL-X poses <-> per-frame 6D feature vectors, and their normalisation (docs/design.md,
+'Motion representation')."""
 
 from __future__ import annotations
 
@@ -115,7 +116,7 @@ def canonical_features(features: torch.Tensor, spec: MotionFeatureSpec | None = 
 
 
 #: :func:`guide_features`: no 6D column may shrink, along its unguided direction, below this share of it.
-#: 0.7 rather than 0.5 (issue 18, val texts): with 0.5 the guided elbow could still swing by a third of a
+#: 0.7 rather than 0.5 (chosen on the val texts): with 0.5 the guided elbow could still swing by a third of a
 #: turn in a few frames, and the largest joint jump over every val take generated whole was 1.50 of the
 #: ground truth's (guidance 3), 1.21 with 0.7, at a rhythm gain of 0.119 against 0.124.
 GUIDANCE_FLOOR = 0.7

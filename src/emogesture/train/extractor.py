@@ -1,4 +1,5 @@
-"""Training the motion feature extractor M (SPEC §8, supp. D): emotion classification of motion windows."""
+"""Training the motion feature extractor M (docs/design.md, 'Metrics'; paper supp. D): emotion classification
+of motion windows."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Joint training of the motion prior and the latent denoiser (paper Fig. 2, SPEC §4).
+"""Joint training of the motion prior and the latent denoiser (paper Fig. 2; docs/design.md, 'Gesture generation model').
 
 Each step: (1) prior forward on the motion m -> m̂: L_rec (smooth L1, features), L_Vrec (smooth L1,
 joint positions of the licence-free skeleton), L_KL; (2) z_m = P_E(m) without gradient, noised at a
@@ -244,7 +244,7 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                     gt.append(self.joints(m))
             return gt[0]
 
-        # the speech's timing stream ends the conditions of a model that reads one (issue 18); the
+        # the speech's timing stream ends the conditions of a model that reads one; the
         # decoder reads it when vae.timing_features > 0, the denoiser when denoiser.timing_tokens > 0
         stream = conds[-1] if cfg.model.vae.timing_features else None
         conds = conds[: cfg.model.denoiser.num_inputs]

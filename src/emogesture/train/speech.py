@@ -1,4 +1,4 @@
-"""Training the speech disentanglement model (SPEC §2) with Lightning."""
+"""Training the speech disentanglement model (docs/design.md, 'Speech disentanglement model') with Lightning."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Synthetic BEAT2-layout corpus: real speech synthesis plus procedural, speech-timed SMPL-X gestures
-with known emotion, speaker and content factors (SPEC §7)."""
+with known emotion, speaker and content factors (docs/design.md, 'Synthetic corpus')."""
 
 from emogesture.data.synthetic.corpus import CorpusConfig, CorpusSummary, build_corpus, plan_takes, text_split
 from emogesture.data.synthetic.factors import EMOTION_FACTORS, VOICES, make_speaker

@@ -1,4 +1,4 @@
-"""``build_corpus``: the synthetic BEAT2-layout corpus (SPEC §6, §7).
+"""``build_corpus``: the synthetic BEAT2-layout corpus (docs/design.md, 'Data' and 'Synthetic corpus').
 
 Layout under the output folder: ``smplxflame_30/<take>.npz``, ``wave16k/<take>.wav`` (16 kHz int16
 mono), ``textgrid/<take>.TextGrid`` (a ``words`` tier, approximate timings), ``sem/<take>.txt``

@@ -1,4 +1,4 @@
-"""Procedural SMPL-X upper-body gestures timed by speech (SPEC §7).
+"""Procedural SMPL-X upper-body gestures timed by speech (docs/design.md, 'Synthetic corpus').
 
 The motion is built from named control channels (radians, per frame) and mapped onto SMPL-X
 local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
@@ -22,7 +22,8 @@ local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
   while talking);
 * an idle layer that never stops (``IDLE``): band-limited sway, twist and lean of each spine joint,
   head and neck movement, collar movement, and arm and wrist movement scaled by the take's amplitude,
-  so no joint is frozen (issue 17 measured the earlier corpus at a tenth of real torso speed);
+  so no joint is frozen (corpus version 2 moved its torso at a tenth of real speed: docs/design.md, 'How real
+  motion moves');
 * breathing, a tremor for fear, the jaw opening with the speech energy.
 
 Measured with ``emogesture motion-stats`` against real conversational motion capture: see
