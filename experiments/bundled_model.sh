@@ -2,15 +2,16 @@
 # Rebuilds the model bundled with the package (src/emogesture/assets/model/) from scratch, with the
 # project's own recipe, on the experiments' synthetic corpus (common.sh: 30 voices, split by text and by
 # speaker); `make model` runs it. Every step resumes when re-run (finished trainings are not redone).
-# About 90 min on 2 CPU cores.
+# About 100 min on 2 CPU cores.
 #   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside it;
-#   3. the gesture model (tiny, joint, 1200 steps; its residual noise is calibrated on val);
+#   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
 #   4. the speech model's emotion perception (class means on train, trust threshold on val);
 #   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS; the gesture model with
-#      the tiny preset's current generation settings ($GENERATION in common.sh), however old its run;
+#      the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for this recipe:
+#      reports/bundled_model/generation_sweep_val.md), however old its run;
 #   6. the bundle scored on the test split (speech and gesture reports, --emotion auto vs own, real
 #      recorded speech against the test takes of the same emotion: `evaluate real`), and
 #      the model card written from those numbers; then the bundle is copied into the package.
@@ -46,8 +47,8 @@ for model in "${todo[@]}"; do
     pids+=($!)
 done
 for pid in "${pids[@]}"; do wait "$pid"; done
-grep -qs '"step": 1200' "$RUN/gesture/model.json" || timed gesture $EG train gesture --data "$CACHE" --speech "$RUN/speech" \
-    --out "$RUN/gesture" --steps 1200 --checkpoint-every 100 --quiet
+grep -qs '"step": 2400' "$RUN/gesture/model.json" || timed gesture $EG train gesture --data "$CACHE" --speech "$RUN/speech" \
+    --out "$RUN/gesture" --steps 2400 --checkpoint-every 200 --quiet
 
 # 4. emotion perception (train means, val threshold) on a copy of the speech model; 5. the bundle
 [ -f "$RUN/speech_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/speech" --data "$CACHE" \

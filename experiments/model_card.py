@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import re
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ REBUILD = "make model   # = bash experiments/bundled_model.sh (resumes when re-r
 
 
 def rhythm_paragraph(rows: dict, checks: dict) -> str:
-    """What the test report's rhythm checks say about the strokes' timing (issue 18): they follow the
+    """What the test report's rhythm checks say about the strokes' timing: they follow the
     speech when the gain reaches 0.6 of the ground truth's and another window's timing stream takes it
     to within noise of zero."""
     gt, ours = rows["GT"]["rhythm"], rows["ours"]["rhythm"]
@@ -141,6 +142,9 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     wrist_ratio = float(np.mean(np.divide(ours_wrists, gt_wrists)))
     wrists = " / ".join(f"{v:.3f}" for v in ours_wrists) + " rad/frame, left / right"
     rhythm_text = rhythm_paragraph(rows, gesture["checks"])
+    gesture_steps = json.loads((bundle / "gesture.json").read_text())["extra"]["step"]
+    heard = Counter(k for r in real["real"].values() for k in r["heard"])
+    heard_real = ", ".join(f"{k} {n}" for k, n in heard.most_common()) + f" of {sum(heard.values())} windows"
     seams_text = seams_paragraph(gesture["checks"])
     text = f"""# Model card: the bundled emogesture model
 
@@ -159,14 +163,14 @@ Only the project's **synthetic corpus** (`emogesture corpus --speakers 30`, vers
   recording conditions (`--set wave_augment=0.5`: rooms, noise, microphones, telephone, voice and
   tempo shifts), **train split only**;
 - extractor M: 600 steps, train split;
-- gesture model: joint training, 1200 steps (450 prior-only first), train split; its residual noise
+- gesture model: joint training, {gesture_steps} steps (450 prior-only first), train split; its residual noise
   and the speech model's emotion perception are calibrated on the **val** split, which no model
   trained on;
 - every number below is on the **test** split (held out from all of it), scored once.
 
 Training wall time on 2 CPU cores: {"; ".join(card["training_seconds"])}.
 
-Rebuild from scratch (about 90 minutes on 2 cores):
+Rebuild from scratch (about 100 minutes on 2 cores):
 
 ```bash
 {REBUILD}
@@ -198,8 +202,8 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 |---|---|---|
 {real_rows(real)}
 
-  So the emotion it perceives in your voice may be wrong (real read speech is mostly heard as
-  contempt, the corpus's calm, low emotion), and set it yourself where it matters.
+  So the emotion it perceives in your voice may be wrong (these real recordings, all read without
+  acted emotion, are heard as {heard_real}), and set it yourself where it matters.
 - **What `generate` does about it.** It prints the emotion it perceives (majority over 10-s windows,
   with its mean probability) and writes every window's perception to `*_perception.json`. With
   `--emotion auto` (the default) it trusts a window's emotion only where the speech lies within the
@@ -225,11 +229,11 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 
 {rhythm_text}
 {seams_text}
-- **Motion.** The gestures are those of a procedural corpus: upper body only (legs, fingers, face
-  stay at rest); the root does not travel. Since corpus version 3 the training motion turns at speeds within
+- **Motion.** The gestures are those of a procedural corpus: upper body and fingers (legs and face
+  stay at rest); the body turns and leans but does not travel. Since corpus version 3 the training motion turns at speeds within
   the range of real conversational motion capture, joint by joint. This model's hands move at
   {ours['Speed']:.2f} m/s (the ground truth's {gt['Speed']:.2f}), and its wrists turn at {wrist_ratio:.0%} of the
-  ground truth's angular speed ({wrists}; the two real takes of issue 17: 0.023–0.038 / 0.032–0.041;
+  ground truth's angular speed ({wrists}; two real BEAT takes: 0.023–0.038 / 0.032–0.041;
   `emogesture motion-stats`; the tables are in `experiments/README.md`).
   The gestures are generic beats and reaches, not the meaningful (iconic, deictic) gestures people make.
 - **Speakers.** `--style-from` can only take styles like the ones it knows (its train speakers'); another

@@ -12,7 +12,6 @@ import pytest
 import soundfile as sf
 import torch
 
-from emogesture.audio import window_starts
 from emogesture.checkpoints import save_model
 from emogesture.config import to_dict
 from emogesture.data.beat import EMOTIONS
@@ -22,7 +21,7 @@ from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.eval.gesture_models import seam_jumps
 from emogesture.motion import SkeletonBody
-from emogesture.pipeline.generate import (EditRequest, GesturePipeline, choose_seam_candidates, largest_joint_jumps,
+from emogesture.pipeline.generate import (HOP_SECONDS, EditRequest, GesturePipeline, choose_seam_candidates, largest_joint_jumps,
                                          seam_costs, stitch)
 
 
@@ -334,7 +333,7 @@ def test_seam_candidates_avoid_the_worst_seam(runs):
     one = pipe.generate(wave, seed=1, seam_candidates=1)[0]
     four = pipe.generate(wave, seed=1, seam_candidates=4)[0]
     assert np.array_equal(four.poses, pipe.generate(wave, seed=1, seam_candidates=4)[0].poses)
-    starts_s = window_starts(30.0, 10.0, 8.0).tolist()
+    starts_s = pipe.encode(wave, HOP_SECONDS)[1]  # where generation places its windows, and so its seams
     with torch.no_grad():
         jumps = [seam_jumps(SkeletonBody()(torch.from_numpy(q.poses), torch.from_numpy(q.trans)).numpy(), starts_s)
                  for q in (one, four)]
@@ -372,3 +371,20 @@ def test_flags_that_would_be_ignored_are_errors(tmp_path, capsys):
                      "--out", str(tmp_path / "r"), *extra])
         assert code == 2 and "need --model" in capsys.readouterr().err
     assert not (tmp_path / "r").exists()
+
+
+def test_quiet_windows_settle_and_speech_windows_do_not():
+    from emogesture.pipeline.generate import settle_quiet_windows
+
+    rng = np.random.default_rng(0)
+    t = np.arange(300) / 30.0
+    slow = np.sin(2 * np.pi * 0.05 * t)[:, None]  # a posture drifting over twenty seconds
+    feats = (slow + 0.3 * rng.standard_normal((3, 300, 4))).astype(np.float32)  # strokes on top
+    out = settle_quiet_windows(feats, np.array([1.0, 0.5, 0.0]), fps=30.0)
+    assert np.array_equal(out[0], feats[0])  # a window with speech is untouched
+
+    def speed(x):
+        return np.abs(np.diff(x, axis=0)).mean()
+
+    assert speed(out[2]) < 0.1 * speed(feats[2]) < speed(out[1]) < speed(feats[1])
+    assert np.abs(out[2] - slow)[60:240].mean() < 0.1  # the silent window keeps the slow posture change

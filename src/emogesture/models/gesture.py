@@ -1,4 +1,5 @@
-"""The gesture generation model (SPEC §4): motion prior + latent denoiser, and the ablation variants.
+"""The gesture generation model (docs/design.md, 'Gesture generation model'): motion prior + latent denoiser,
+and the ablation variants.
 
 Variants (paper Table 3 / supp. C):
 - ``joint``: MLD-style VAE motion prior and latent denoiser trained together (the paper's model);
@@ -69,7 +70,7 @@ class GestureModelConfig:
 
     @property
     def hears_timing(self) -> bool:
-        """True when the model reads the speech's timing stream (issue 18): its denoiser (after its
+        """True when the model reads the speech's timing stream: its denoiser (after its
         condition latents) and/or its motion decoder. The stream then ends the model's conditions."""
         return self.denoiser.timing_tokens > 0 or self.vae.timing_features > 0
 
@@ -80,8 +81,9 @@ class GestureModelConfig:
 
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
-        """``paper``: SPEC §4 (ε-prediction). ``tiny``: the small VAE and denoiser, and the denoiser
-        predicts ẑ0 (``diffusion.prediction_type="sample"``) instead of ε.
+        """``paper``: the paper's design (ε-prediction; docs/design.md, 'Gesture generation model').
+        ``tiny``: the small VAE and denoiser, and the denoiser predicts ẑ0
+        (``diffusion.prediction_type="sample"``) instead of ε.
 
         Why ẑ0 for tiny (measured with the 900-step tiny VAE, a denoiser trained alone on its latents
         for 1000 steps, generated emotion accuracy GA on held-out texts, GT 0.935): ε-prediction
@@ -92,19 +94,20 @@ class GestureModelConfig:
         chance. v-prediction gives GA 0.62 and ẑ0-prediction 0.73.
 
         A ẑ0 denoiser regresses to the conditional mean, so ``tiny`` also adds the calibrated residual
-        noise (``diffusion.residual_scale = 1``, see :mod:`emogesture.diffusion.residual`).
+        noise, at half its calibrated scale (``diffusion.residual_scale = 0.5``, chosen on val with the
+        timing guidance; see :mod:`emogesture.diffusion.residual`).
 
-        ``tiny`` samples with 10 DDIM steps (the paper: 50; issue 19): a ẑ0 denoiser's samples hardly
-        change with the step count (val, 4 seeds, the bundled model: GA 0.718 ± 0.033 with 10 steps,
+        ``tiny`` samples with 10 DDIM steps (the paper: 50; sampling is generation's largest stage): a ẑ0
+        denoiser's samples hardly change with the step count (val, 4 seeds, the bundled model: GA 0.718 ± 0.033 with 10 steps,
         0.707 ± 0.044 with 25, 0.707 ± 0.038 with 50; FGD 7.41 / 7.44 / 7.47; rhythm gain, speed, jerk and
         the seam checks alike), and its training samples with 10 already (``align_ddim_steps``).
 
-        ``tiny``'s motion decoder also hears the speech's timing stream (issue 18; not in the paper),
+        ``tiny``'s motion decoder also hears the speech's timing stream (not in the paper),
         for the variants that hear speech through a decoder (``joint``, ``disjoint``): see
         :meth:`MotionVAEConfig.preset`. ``paper`` is the paper's design.
         """
         n = 1 if variant == "no_audio" else 3
-        diffusion = (DiffusionConfig(prediction_type="sample", residual_scale=1.0, num_inference_steps=10)
+        diffusion = (DiffusionConfig(prediction_type="sample", residual_scale=0.5, num_inference_steps=10)
                      if name == "tiny" else DiffusionConfig())
         timing = name == "tiny" and variant in ("joint", "disjoint")
         return cls(variant=variant, vae=MotionVAEConfig.preset(name, timing=timing),

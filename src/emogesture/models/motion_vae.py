@@ -1,4 +1,5 @@
-"""Motion prior: a transformer VAE in the style of MLD (SPEC §4, paper §3.3, supp. Fig. A.7).
+"""Motion prior: a transformer VAE in the style of MLD (docs/design.md, 'Gesture generation model'; paper §3.3,
+supp. Fig. A.7).
 
 Encoder P_E: ``motion [B, T, 282]`` -> Linear(282 -> d) -> two learnable distribution tokens (μ, log σ²)
 prepended -> skip transformer (learnable positional embedding in every attention layer) -> the first two
@@ -35,10 +36,10 @@ Two further options (not in MLD; off in the ``paper`` preset) make a small prior
   at zero (random cosines would only add noise).
 * ``detail_path = F'`` with ``detail_columns``: the same kind of path for a few feature columns only,
   reading their own features (not the frame embeddings) and writing only them, so that those columns
-  get more cosines than the rest (issue 17: the wrists' turns, which the timing stream cannot place,
+  get more cosines than the rest (used for the wrists' turns, which the timing stream cannot place,
   while the arms' strokes stay with the stream). Output Linear at zero, as above.
 
-``timing_features = F > 0`` (issue 18; not in MLD, off in both presets): the decoder also reads the
+``timing_features = F > 0`` (not in MLD, off in both presets): the decoder also reads the
 speech's timing stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, T, F]``): every query
 token gets ``Linear(the stream of the frames it covers)`` added, so each frame knows when the speech
 around it moves without that passing through z. The Linear starts at zero (the prior begins as MLD's).
@@ -162,17 +163,18 @@ class MotionVAEConfig:
         Without dropout, attention runs in torch's fused CPU kernel instead of materialising and masking
         every 300×300 attention matrix: a joint training step is about twice as fast.
 
-        ``tiny`` with ``timing=True`` (issue 18; the gesture model's default, for the variants that hear
+        ``tiny`` with ``timing=True`` (the gesture model's default, for the variants that hear
         speech): 16 cosines only (0.75 Hz over 10 s), so the latent carries posture and slow motion
         but not the strokes, and the decoder reads the speech's timing stream (smoothed, σ 2 frames)
-        to place them; at generation the stream's part is scaled by 3.5 (``timing_guidance``) and the
-        output low-passed at 3 Hz (``output_lowpass_hz``). The choices were made on the val texts (see
-        ``experiments/README.md``, "Gestures on the beat"; since issue 17's wrist path, guidance 3.5 at 3 Hz
-        instead of 4 at 2.75 Hz, with the guard's floor at 0.7: over 4 seeds FGD 7.5 against 8.7, the largest
-        jump in takes generated whole 1.33 of the ground truth's against 1.61, the same rhythm gain).
+        to place them; at generation the stream's part is scaled by 5 (``timing_guidance``) and the
+        output low-passed at 4 Hz (``output_lowpass_hz``), chosen on the val split for the bundled model
+        (corpus version 5, 2400 steps; ``experiments/reports/bundled_model/generation_sweep_val.md``: the
+        highest GA among the settings whose rhythm gain is at least 0.06 with the wrist speed and jerk
+        within 20 % of the ground truth's). Earlier models of corpus version 3 used guidance 3.5 at 3 Hz
+        (``experiments/README.md``, "Rhythm").
 
         With the timing stream, the wrists' 12 feature columns (in the default 282-number layout) also
-        get a path of their own, 24 cosines (1.15 Hz; ``detail_path``, ``detail_columns``; issue 17): the
+        get a path of their own, 24 cosines (1.15 Hz; ``detail_path``, ``detail_columns``): the
         corpus turns each stroke's wrist in its own direction, which the stream cannot say, and with 16
         cosines for everything the generated wrists turned at 0.0090 / 0.0100 rad/frame against the
         ground truth's 0.0156 / 0.0197 (val). With the path, 0.028 / 0.036, inside the range of real
@@ -184,7 +186,7 @@ class MotionVAEConfig:
         if name == "tiny":
             spec = MotionFeatureSpec()  # the wrists' columns, in the default feature layout
             wrists = tuple(spec.columns(WRIST_JOINTS)) if feature_dim == spec.dim else ()
-            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=3.5, output_lowpass_hz=3.0,
+            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=5.0, output_lowpass_hz=4.0,
                          detail_path=min(24, frames) if wrists else 0, detail_columns=wrists)
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
                        low_frequency_path=min(16 if timing else 48, frames), **(hears if timing else {}))
@@ -287,7 +289,7 @@ class MotionVAE(nn.Module):
             nn.init.zeros_(self.detail_out.bias)
         else:
             self.detail_basis = self.detail_index = self.detail_mu = self.detail_out = None
-        if c.timing_features:  # the speech's timing stream added to the queries (issue 18)
+        if c.timing_features:  # the speech's timing stream added to the queries
             self.timing_to_query = nn.Linear(k * c.timing_features, d)
             nn.init.zeros_(self.timing_to_query.weight)
             nn.init.zeros_(self.timing_to_query.bias)

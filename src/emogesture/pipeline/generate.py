@@ -1,4 +1,5 @@
-"""Speech -> SMPL-X gestures (SPEC §5): windows, latent diffusion, decoding, seamless stitching, editing.
+"""Speech -> SMPL-X gestures (docs/design.md, 'Generation and editing'): windows, latent diffusion, decoding,
+seamless stitching, editing.
 
 Audio of any length is covered by 10-s windows every ``hop_seconds`` (default :data:`HOP_SECONDS`,
 7 s, so neighbours overlap by 3 s); each window is generated on its own and the overlaps are cross-faded in the 6D
@@ -12,7 +13,12 @@ of its cross-fade, over the overlap and the frames on either side. Output length
 
 A calibrated model's residual noise (the strokes the per-window audio latents leave open, see
 :mod:`emogesture.diffusion.residual`) is weighted per window by how much of it holds sound
-(:data:`FULL_RESIDUAL_ACTIVITY`): silence gets none, so a silent stretch gives a calm animation.
+(:data:`FULL_RESIDUAL_ACTIVITY`): silence gets none. A window with less sound than that also settles
+(:func:`settle_quiet_windows`): its motion is blended, by the same weight, toward itself smoothed over
+:data:`SETTLE_SIGMA_SECONDS`, so a silent stretch gives a calm animation that keeps the posture and a slow
+sway. (The training speech has no long pauses, so a model's motion for silence is whatever it makes of
+speech it never heard; a model trained on corpus version 5 moves its wrists at 0.11 m/s there, 60 % of
+its speed on speech.)
 
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
@@ -29,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from scipy.ndimage import gaussian_filter1d
 
 from emogesture.assets import bundled_model_file
 from emogesture.audio import check_speech, load_audio, window_activity
@@ -58,6 +65,23 @@ SEAMS_PER_BATCH = 16
 #: Share of a window's frames with sound (:func:`emogesture.audio.window_activity`) from which its
 #: residual noise is added in full; below it the noise shrinks linearly to none for silence.
 FULL_RESIDUAL_ACTIVITY = 0.5
+#: Standard deviation (s) of the Gaussian over time toward which a quiet window's motion settles.
+SETTLE_SIGMA_SECONDS = 1.0
+
+
+def settle_quiet_windows(features: np.ndarray, weights: np.ndarray, fps: float) -> np.ndarray:
+    """Drawn windows' motion features ``[W, T, D]`` with their sound weights ``[W]`` in [0, 1] (1: at
+    least :data:`FULL_RESIDUAL_ACTIVITY` of the window holds sound) -> the same, each window blended by
+    ``1 − weight`` toward itself smoothed over time (a Gaussian of :data:`SETTLE_SIGMA_SECONDS`): a
+    silent window keeps its slow posture changes and loses its strokes; a window with speech is unchanged."""
+    quiet = np.asarray(weights, np.float64) < 1.0
+    if not quiet.any():
+        return features
+    out = features.copy()
+    smooth = gaussian_filter1d(features[quiet].astype(np.float64), SETTLE_SIGMA_SECONDS * fps, axis=1, mode="nearest")
+    w = np.asarray(weights, np.float64)[quiet][:, None, None]
+    out[quiet] = (w * features[quiet] + (1.0 - w) * smooth).astype(features.dtype)
+    return out
 
 
 @dataclass
@@ -354,7 +378,7 @@ class GesturePipeline:
         # candidate 0 of window i keeps the seed it has with one candidate
         seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                  for k, i, c in draws]
-        drawn = self.generate_windows(picked, seeds, progress, weights, times)
+        drawn = settle_quiet_windows(self.generate_windows(picked, seeds, progress, weights, times), weights, self.fps)
         return drawn.reshape(samples, n, k_cand, *drawn.shape[1:]), starts
 
     def to_sequence(self, feats: np.ndarray) -> SMPLXSequence:
