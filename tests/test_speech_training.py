@@ -161,3 +161,51 @@ def test_content_use_sees_whether_the_decoder_reads_the_content_latent():
     assert use["content_shuffled"] > use["self"] + 0.5  # another window's level is off by at least 1
     use = content_use(model(False), SimpleNamespace(fbank=fbank), seed=0, batch_size=2)
     assert use["content_shuffled"] == use["self"]
+
+
+def _deit_layout(width: int, depth: int, seed: int = 0) -> dict:
+    """Random tensors in timm's DeiT (distilled, patch 16, 384 px) layout at a small width and depth."""
+    import torch
+
+    g = torch.Generator().manual_seed(seed)
+    shapes = {"patch_embed.proj.weight": [width, 3, 16, 16], "patch_embed.proj.bias": [width],
+              "cls_token": [1, 1, width], "dist_token": [1, 1, width], "pos_embed": [1, 2 + 24 * 24, width],
+              "norm.weight": [width], "norm.bias": [width], "head.weight": [10, width], "head.bias": [10]}
+    for i in range(depth):
+        for name, shape in {"norm1": [width], "attn.qkv": [3 * width, width], "attn.proj": [width, width],
+                            "norm2": [width], "mlp.fc1": [4 * width, width], "mlp.fc2": [width, 4 * width]}.items():
+            shapes[f"blocks.{i}.{name}.weight"], shapes[f"blocks.{i}.{name}.bias"] = shape, [shape[0]]
+    return {k: torch.randn(*s, generator=g) for k, s in shapes.items()}
+
+
+def test_init_from_deit_weights_starts_every_encoder_there(cache, tmp_path):
+    import torch
+    from safetensors.torch import save_file
+
+    from emogesture.config import to_dict
+    from emogesture.train.speech import SpeechModule, SpeechTrainConfig
+
+    deit = _deit_layout(width=32, depth=1)
+    weights = tmp_path / "deit_small_layout.safetensors"
+    save_file(deit, str(weights))
+    config = SpeechTrainConfig.preset("paper")
+    config.model.encoder.width, config.model.encoder.depth, config.model.encoder.heads = 32, 1, 2
+    random_start = SpeechModule(to_dict(config)).model
+    config.init_from = str(weights)
+    module = SpeechModule(to_dict(config))
+    for name in ("content_encoder", "emotion_encoder", "style_encoder"):
+        vit = getattr(module.model, name).vit.state_dict()
+        for key in ("blocks.0.attn.qkv.weight", "blocks.0.mlp.fc2.bias", "cls_token", "dist_token", "norm.weight"):
+            assert torch.equal(vit[key], deit[key]), (name, key)
+            assert not torch.equal(getattr(random_start, name).vit.state_dict()[key], deit[key])
+        # one-channel patch kernels: the mean of the three colour channels
+        assert torch.allclose(vit["patch_embed.proj.weight"], deit["patch_embed.proj.weight"].mean(1, keepdim=True))
+    # the weight average that gets exported starts from the same weights
+    averaged = module.averaged.content_encoder.vit.state_dict()["blocks.0.attn.qkv.weight"]
+    assert torch.equal(averaged, deit["blocks.0.attn.qkv.weight"])
+
+    missing = tmp_path / "no_such_weights.safetensors"
+    out = subprocess.run(cli(*TRAIN, "--preset", "paper", "--data", cache, "--out", tmp_path / "run", "--steps", 1,
+                             "--init-from", missing), capture_output=True, text=True)
+    assert out.returncode != 0 and "Traceback" not in out.stderr
+    assert f"{missing}: pretrained weights file not found" in out.stderr.strip().splitlines()[-1]

@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", default="tiny", choices=["tiny", "paper"], help="model size (default tiny)")
     p.add_argument("--losses", default="full", choices=["full", "emotion_only", "style_only", "adversarial"],
                    help="loss terms: full (the paper), emotion_only / style_only (its ablations), adversarial (full + latent adversaries)")
+    p.add_argument("--init-from", type=Path, metavar="WEIGHTS",
+                   help="start the three audio encoders from DeiT weights you have (timm layout, .safetensors or "
+                        ".pth, e.g. deit_base_distilled_patch16_384; with --preset paper), as the paper does")
     _engine_args(p)
     p.set_defaults(func=run_train_speech)
     p = tsub.add_parser("extractor", help="the motion feature extractor M used by the gesture metrics")
@@ -90,6 +93,8 @@ def run_train_speech(args: argparse.Namespace) -> int:
 
     base = to_dict(SpeechTrainConfig.preset(args.preset, args.losses))
     config = load_config(SpeechTrainConfig, args.config, args.overrides, base=base)
+    if args.init_from is not None:
+        config.init_from = str(args.init_from.resolve())
     return _run(args, "train speech", config, build, "speech model")
 
 

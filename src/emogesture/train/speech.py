@@ -18,6 +18,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
 from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
 from emogesture.errors import ConfigError
+from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
@@ -59,6 +60,10 @@ class SpeechTrainConfig:
     #: Cache splits the model learns from. ``["train", "val"]`` adds the validation texts (never the test
     #: texts): with few texts per emotion, more texts is what helps emotion recognition generalise.
     train_splits: list[str] = field(default_factory=lambda: ["train"])
+    #: DeiT weights (timm's layout, ``.safetensors`` or ``.pth``, e.g. deit_base_distilled_patch16_384) that
+    #: the three audio encoders start from (``train speech --init-from``; the paper's initialisation: the
+    #: encoders' width, depth and patch size must be DeiT's, as in the ``paper`` preset). Empty: random.
+    init_from: str = ""
 
     @classmethod
     def preset(cls, size: str = "tiny", losses: str = "full") -> "SpeechTrainConfig":
@@ -104,6 +109,10 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         self.seed = seed
         torch.manual_seed(seed)  # weight initialisation, reproducible per run seed
         self.model = SpeechDisentangler(self.cfg.model)
+        if self.cfg.init_from:
+            weights = load_deit_state_dict(self.cfg.init_from)
+            init_speech_model_from_pretrained(self.model,
+                                              adapt_deit_to_audio(weights, self.model.content_encoder.vit.config))
         # the linear heads of switched-off extension terms take no part (DDP requires every trained
         # parameter to receive a gradient)
         for term, heads in (("latent_classes", ("emotion_from_latent", "speaker_from_latent")),
