@@ -83,12 +83,31 @@ def test_an_absurd_sample_rate_is_refused(tmp_path, rate):
         load_audio(wav)
 
 
-def test_resampling_is_bounded_for_awkward_rates():
+def _assert_sine(y: np.ndarray, sr: int, freq: float, amplitude: float) -> None:
+    """``y`` holds a sine of ``freq`` Hz and ``amplitude``: its spectrum peaks within one bin of ``freq``
+    and its RMS (away from the filter's edge transients) is ``amplitude / sqrt(2)`` within 1 %."""
+    spectrum = np.abs(np.fft.rfft(y * np.hanning(len(y))))
+    peak = np.fft.rfftfreq(len(y), 1 / sr)[spectrum.argmax()]
+    assert abs(peak - freq) <= sr / len(y), peak
+    middle = y[len(y) // 10: -len(y) // 10]
+    assert np.sqrt(np.mean(middle**2)) == pytest.approx(amplitude / np.sqrt(2), rel=0.01)
+
+
+def test_resampling_is_bounded_for_awkward_rates_and_keeps_a_sine(tmp_path):
     x = np.random.default_rng(0).normal(size=44101)  # one second at 44101 Hz: gcd 1 with 16000
     y = resample(x, 44101, 16000)
     assert abs(len(y) - 16000) <= 1
     y = resample(np.ones(1009), 1009, 16000)  # a prime rate, upsampled
     assert abs(len(y) - 16000) <= 16 and MAX_RESAMPLE_FACTOR >= 160
+    # a 440 Hz sine keeps its frequency and amplitude: read from a 44.1 kHz file at 16 kHz, and resampled
+    # from the awkward 44101 Hz (whose ratio is approximated)
+    wav = tmp_path / "sine_44100.wav"
+    sf.write(wav, 0.5 * np.sin(2 * np.pi * 440.0 * np.arange(2 * 44100) / 44100), 44100, subtype="FLOAT")
+    y, sr = load_audio(wav)
+    assert sr == 16000 and abs(len(y) - 2 * 16000) <= 1
+    _assert_sine(y, sr, 440.0, 0.5)
+    y = resample(0.5 * np.sin(2 * np.pi * 440.0 * np.arange(2 * 44101) / 44101), 44101, 16000)
+    _assert_sine(y, 16000, 440.0, 0.5)
 
 
 def test_ffmpeg_that_cannot_run_is_one_line(tmp_path):

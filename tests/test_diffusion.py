@@ -255,25 +255,47 @@ def test_ddim_loop_with_an_oracle_recovers_x0():
 # --- residual noise ----------------------------------------------------------------------------------------
 
 
-def test_shrunk_covariance_matches_the_ledoit_wolf_formula():
+def test_shrunk_covariance_is_ledoit_wolf_and_shrinks_toward_a_scaled_identity():
+    from sklearn.covariance import ledoit_wolf
+
     from emogesture.diffusion.residual import residual_factor, shrunk_covariance
 
     rng = np.random.default_rng(0)
-    x = rng.normal(size=(40, 6)) @ rng.normal(size=(6, 6))
-    cov, delta = shrunk_covariance(x)
-    xc = x - x.mean(0)
-    s = xc.T @ xc / len(x)
-    mu = np.trace(s) / 6
-    d2 = ((s - mu * np.eye(6)) ** 2).sum()
-    b2 = sum(((np.outer(r, r) - s) ** 2).sum() for r in xc) / len(x) ** 2
-    want = min(b2, d2) / d2
-    assert delta == pytest.approx(want) and 0 < delta < 1
-    np.testing.assert_allclose(cov, want * mu * np.eye(6) + (1 - want) * s, rtol=1e-10)
-    # many samples of a correlated Gaussian: little shrinkage; fewer samples than dimensions: still positive definite
-    assert shrunk_covariance(rng.normal(size=(5000, 6)) @ rng.normal(size=(6, 6)))[1] < 0.05
+    for n, d in [(40, 6), (10, 32), (300, 3), (3, 2)]:
+        x = rng.normal(size=(n, d)) @ rng.normal(size=(d, d)) + rng.normal(size=d)
+        cov, delta = shrunk_covariance(x)
+        want_cov, want_delta = ledoit_wolf(x)
+        assert delta == pytest.approx(want_delta, abs=1e-12) and 0 <= delta <= 1
+        np.testing.assert_allclose(cov, want_cov, rtol=1e-10, atol=1e-12)
+        # a convex combination of the sample covariance and mu I: the trace (total variance) is kept,
+        # off-diagonals scale by 1 - delta, and every eigenvalue moves toward mu along the same axes
+        xc = x - x.mean(0)
+        s = xc.T @ xc / n
+        mu = np.trace(s) / d
+        assert np.trace(cov) == pytest.approx(np.trace(s), rel=1e-12)
+        off = ~np.eye(d, dtype=bool)
+        np.testing.assert_allclose(cov[off], (1 - delta) * s[off], rtol=1e-10, atol=1e-12)
+        before, after = np.linalg.eigvalsh(s), np.linalg.eigvalsh(cov)
+        np.testing.assert_allclose(after, delta * mu + (1 - delta) * before, rtol=1e-9, atol=1e-12)
+        # scale and shift: c x has c² the covariance and the same shrinkage; a constant offset changes nothing
+        cov2, delta2 = shrunk_covariance(3.0 * x + 7.0)
+        np.testing.assert_allclose(cov2, 9.0 * cov, rtol=1e-9)
+        assert delta2 == pytest.approx(delta, abs=1e-9)
+    # fewer samples than dimensions: the sample covariance is singular, the shrunk one positive definite
     few = rng.normal(size=(10, 32))
+    cov, delta = shrunk_covariance(few)
+    assert np.linalg.matrix_rank(np.cov(few.T, bias=True)) < 32 and delta > 0
+    assert np.linalg.eigvalsh(cov).min() > 0
     L, _ = residual_factor(few)
     assert L.shape == (32, 32) and np.allclose(L, np.tril(L)) and np.all(np.diag(L) > 0)
+    np.testing.assert_allclose(L.astype(np.float64) @ L.T, cov, rtol=1e-4, atol=1e-5)
+    # isotropic data is shrunk a lot (the target is right), many samples of a correlated Gaussian little
+    assert shrunk_covariance(rng.normal(size=(40, 16)))[1] > 0.5
+    assert shrunk_covariance(rng.normal(size=(5000, 6)) @ rng.normal(size=(6, 6)))[1] < 0.05
+    # one dimension: the variance itself; two samples: rounding never makes the weight negative
+    one = rng.normal(size=(50, 1))
+    assert shrunk_covariance(one)[0] == pytest.approx(np.array([[one.var()]]), rel=1e-12)
+    assert all(shrunk_covariance(rng.normal(size=(2, k)))[1] >= 0 for k in range(2, 40))
     with pytest.raises(ValueError, match="residuals"):
         shrunk_covariance(np.zeros((1, 4)))
 

@@ -2,7 +2,7 @@
 
 import signal
 import subprocess
-import time
+import sys
 
 import numpy as np
 import pytest
@@ -79,23 +79,39 @@ def test_other_settings_into_the_same_cache_are_refused(tmp_path):
         prepare(tmp_path / "root", tmp_path / "cache", PrepareConfig(hop_seconds=2.5), progress=False)
 
 
+# `emogesture prepare` that SIGKILLs itself as soon as its third take file is in place: a kill midway at a
+# fixed point, with no clean-up of any kind, instead of a race between the command and a watcher
+KILLED_AFTER_THREE_TAKES = """
+import os, signal, sys
+import emogesture.data.prepare as prepare_module
+from emogesture.cli.main import main
+
+write = prepare_module.write_npz_atomic
+written = []
+
+def write_then_die(path, *args, **kwargs):
+    out = write(path, *args, **kwargs)
+    written.append(path)
+    if len(written) == 3:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return out
+
+prepare_module.write_npz_atomic = write_then_die
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def test_killed_midway_resumes_to_the_same_result(tmp_path):
     make_root(tmp_path / "root", speakers=(1, 2, 3, 4, 5), takes=(1, 2, 3, 65, 66, 67))
     prepare(tmp_path / "root", tmp_path / "clean", progress=False)
 
-    proc = subprocess.Popen(cli("prepare", tmp_path / "root", "--out", tmp_path / "cache", "--quiet"),
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    command = [sys.executable, "-c", KILLED_AFTER_THREE_TAKES, "prepare", str(tmp_path / "root"),
+               "--out", str(tmp_path / "cache"), "--quiet"]
+    proc = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == -signal.SIGKILL, f"prepare was not killed midway: {proc.stderr[-2000:]}"
     takes = tmp_path / "cache" / "takes"
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and proc.poll() is None:
-        if takes.is_dir() and len(list(takes.glob("*.npz"))) >= 3:
-            proc.send_signal(signal.SIGKILL)
-            break
-        time.sleep(0.005)
-    proc.wait()
-    assert proc.returncode == -signal.SIGKILL, "prepare finished before it could be killed"
     done = len(list(takes.glob("*.npz")))
-    assert 3 <= done < 30 and not (tmp_path / "cache" / "manifest.json").exists()
+    assert done == 3 and not (tmp_path / "cache" / "manifest.json").exists()
 
     res = prepare(tmp_path / "root", tmp_path / "cache", progress=False)
     assert res.takes_processed == 30 - done  # resumed, not restarted

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from emogesture.audio.io import TARGET_SAMPLE_RATE
 from emogesture.audio.mel import kaldi_mel_banks
 from emogesture.audio.stft import as_float_tensor, frame_signal, power_spectrum
 from emogesture.errors import ConfigError
@@ -61,7 +62,7 @@ class FbankConfig:
     columns.
     """
 
-    sample_rate: int = 16000
+    sample_rate: int = TARGET_SAMPLE_RATE
     num_mel_bins: int = 128
     frame_length_ms: float = 25.0
     frame_shift_ms: float = 10.0

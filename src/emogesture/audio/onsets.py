@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from numpy.lib.stride_tricks import sliding_window_view
 
+from emogesture.audio.io import TARGET_SAMPLE_RATE
 from emogesture.audio.mel import librosa_mel_banks
 from emogesture.audio.stft import as_float_tensor, stft_power
 
@@ -32,7 +33,7 @@ def _mono(waveform: np.ndarray | torch.Tensor) -> torch.Tensor:
 
 def onset_strength(
     waveform: np.ndarray | torch.Tensor,
-    sample_rate: int = 16000,
+    sample_rate: int = TARGET_SAMPLE_RATE,
     hop_length: int = 512,
     *,
     n_fft: int = 2048,
@@ -95,7 +96,7 @@ def peak_pick(
 
 def detect_onsets(
     waveform: np.ndarray | torch.Tensor,
-    sample_rate: int = 16000,
+    sample_rate: int = TARGET_SAMPLE_RATE,
     hop_length: int = 512,
     *,
     pre_max: float = 0.03,

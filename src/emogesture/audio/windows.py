@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from emogesture.audio.fbank import FLOAT32_EPS, FbankConfig, num_fbank_frames
+from emogesture.audio.io import TARGET_SAMPLE_RATE
 
 __all__ = [
     "FBANK_MEAN",
@@ -39,7 +40,7 @@ FBANK_STD: float = 5.062332
 WINDOW_FRAMES: int = 1024
 WINDOW_SECONDS: float = 10.0
 FBANK_FRAMES_PER_SECOND: int = 100  # 10 ms shift
-WINDOW_CONTENT_FRAMES: int = num_fbank_frames(int(WINDOW_SECONDS * 16000), FbankConfig())  # 998
+WINDOW_CONTENT_FRAMES: int = num_fbank_frames(int(WINDOW_SECONDS * TARGET_SAMPLE_RATE), FbankConfig())  # 998
 
 Array = np.ndarray | torch.Tensor
 

@@ -68,7 +68,7 @@ def _emotion_request(args: argparse.Namespace) -> tuple[str, str | None]:
 def run_generate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from emogesture.audio import window_starts
+    from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
     from emogesture.errors import EmogestureError
     from emogesture.export import export_paths, export_sequence, parse_formats
     from emogesture.fileio import atomic_output, check_output
@@ -119,8 +119,8 @@ def run_generate(args: argparse.Namespace) -> int:
             check_output(path, args.overwrite)
     check_output(perception_path, args.overwrite)
 
-    with tqdm(total=len(window_starts(len(wave) / 16000, WINDOW_SECONDS, HOP_SECONDS)), desc="encoding speech", unit="window",
-              disable=not show, leave=False) as bar:
+    with tqdm(total=len(window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, HOP_SECONDS)),
+              desc="encoding speech", unit="window", disable=not show, leave=False) as bar:
         encoded = pipe.encode(wave, progress=bar.update)
     perceived = [pipe.perceive(*encoded, source=str(args.speech))]
     if edit is not None and "emotion" in edit_audio:
@@ -146,7 +146,7 @@ def run_generate(args: argparse.Namespace) -> int:
     style = f"style from {args.style_from.name}" if args.style_from else "style: own"
     for k, (seq, stem) in enumerate(zip(sequences, stems)):
         text = f"{args.speech.name}\n{emotion}  |  {style}\nseed {args.seed}, sample {k}"
-        export_sequence(seq, stem, formats, audio=(wave, 16000), label=text, overwrite=args.overwrite,
+        export_sequence(seq, stem, formats, audio=(wave, TARGET_SAMPLE_RATE), label=text, overwrite=args.overwrite,
                         progress=show, written=lambda path: print(f"{path}  ({seq.num_frames} frames, "
                                                                    f"{seq.duration:.2f} s)"))
     with atomic_output(perception_path, args.overwrite) as tmp:

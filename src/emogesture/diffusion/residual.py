@@ -20,23 +20,20 @@ from emogesture.diffusion.sampling import Generators, draw_noise
 def shrunk_covariance(residuals: np.ndarray) -> tuple[np.ndarray, float]:
     """Ledoit–Wolf covariance of ``residuals [N, D]`` (rows = samples): ``(cov [D, D], shrinkage)``.
 
-    The sample covariance ``S`` (centred, divided by ``N``) is pulled toward ``μ I`` (``μ = tr S / D``)
-    by the weight ``δ = min(b², d²) / d²``, ``d² = ‖S − μ I‖²_F``, ``b² = Σ_k ‖x_k x_kᵀ − S‖²_F / N²``.
-    Positive definite even when ``N < D`` (held-out splits are small).
+    scikit-learn's estimator: the sample covariance ``S`` (centred, divided by ``N``) is pulled toward
+    ``μ I`` (``μ = tr S / D``) by the weight ``δ = min(b², d²) / d²``, ``d² = ‖S − μ I‖²_F``,
+    ``b² = Σ_k ‖x_k x_kᵀ − S‖²_F / N²``; ``δ`` is clipped at 0 against rounding (``N = 2`` gives
+    ``b² = 0``), and is 0 where ``S`` already is ``μ I`` (``D = 1``), where any weight gives the same matrix.
+    Positive definite even when ``2 < N < D`` (held-out splits are small).
     """
+    # imported here: scikit-learn takes about a second to import, and only fitting (not generation) needs it
+    from sklearn import covariance
+
     x = np.asarray(residuals, np.float64)
     if x.ndim != 2 or x.shape[0] < 2:
         raise ValueError(f"residuals must be [N >= 2, D], got shape {x.shape}")
-    n, d = x.shape
-    x = x - x.mean(0)
-    s = x.T @ x / n
-    mu = np.trace(s) / d
-    target = mu * np.eye(d)
-    d2 = float(((s - target) ** 2).sum())
-    # Σ_k ‖x_k x_kᵀ − S‖²_F = Σ_k ‖x_k‖⁴ − N ‖S‖²_F
-    b2 = float(((x * x).sum(1) ** 2).sum() - n * (s * s).sum()) / n**2
-    delta = 1.0 if d2 == 0 else min(max(b2, 0.0), d2) / d2
-    return delta * target + (1 - delta) * s, delta
+    delta = max(float(covariance.ledoit_wolf_shrinkage(x)), 0.0)
+    return covariance.shrunk_covariance(covariance.empirical_covariance(x), delta), delta
 
 
 def residual_factor(residuals: np.ndarray) -> tuple[np.ndarray, float]:

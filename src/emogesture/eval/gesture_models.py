@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import load_audio, onset_strength, window_starts
+from emogesture.audio import TARGET_SAMPLE_RATE, load_audio, onset_strength, window_starts
 from emogesture.checkpoints import load_model, split_use, write_text_atomic
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache, open_cache
@@ -48,9 +48,7 @@ from emogesture.pipeline.generate import (HOP_SECONDS, WINDOW_SECONDS, GesturePi
                                           stitch)
 from emogesture.pipeline.perception import auto_emotion, auto_style, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.types import SMPLXSequence
-
-FPS = 30
+from emogesture.types import FPS, SMPLXSequence
 
 
 def edit_targets(emotion: np.ndarray, seed: int = 0, available: list[int] | None = None) -> np.ndarray:
@@ -217,7 +215,8 @@ def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_sec
                      seam_candidates: int = 4) -> tuple[np.ndarray, list[float]]:
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
     seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds, seam_candidates=seam_candidates)[0]
-    return sequence_joints(pipe, seq), window_starts(len(wave) / 16000, WINDOW_SECONDS, hop_seconds).tolist()
+    starts = window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, hop_seconds)
+    return sequence_joints(pipe, seq), starts.tolist()
 
 
 #: Sampling seeds pooled for the long-audio seams of unselected windows: one draw's largest jumps are a
@@ -246,7 +245,7 @@ def long_audio_check(pipe: GesturePipeline, stretches: list[LongAudio], seed: in
     statistics of each (see :func:`seam_jumps`), keyed by candidates, and the unselected ratio of each
     stretch. Jumps near a take boundary are left out (:data:`BOUNDARY_MARGIN_S`)."""
     long = stretches[0]
-    duration = len(long.wave) / 16000
+    duration = len(long.wave) / TARGET_SAMPLE_RATE
     out: dict = {"seconds": duration, "hop_seconds": hop_seconds, "expected_frames": int(round(duration * FPS)),
                  "boundaries_s": long.boundaries_s}
     chosen, unselected = SEAM_CANDIDATES

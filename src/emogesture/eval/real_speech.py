@@ -24,6 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from emogesture.audio import TARGET_SAMPLE_RATE
 from emogesture.data.beat import EMOTIONS
 from emogesture.eval.gesture_models import sequence_joints
 from emogesture.eval.motion_stats import motion_statistics
@@ -42,7 +43,7 @@ def _perception(pipe: GesturePipeline, wave: np.ndarray, emotion: str, name: str
     encoded = pipe.encode(wave)
     heard = pipe.perceive(*encoded, name)
     trusted = None if heard.trust is None else [bool(t >= 1.0) for t in heard.trust]
-    return {"seconds": round(len(wave) / 16000, 2), "windows": len(heard.labels), "heard": heard.labels,
+    return {"seconds": round(len(wave) / TARGET_SAMPLE_RATE, 2), "windows": len(heard.labels), "heard": heard.labels,
             "heard_counts": dict(Counter(heard.labels)),
             "heard_as_emotion": [label == emotion for label in heard.labels],
             "trusted": trusted, "trust": None if heard.trust is None else [round(float(t), 3) for t in heard.trust],

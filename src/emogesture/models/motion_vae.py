@@ -242,7 +242,12 @@ def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
 
 def dct_basis(n: int, count: int) -> torch.Tensor:
     """The first ``count`` DCT-II cosines over ``n`` samples, unnormalised: ``[n, count]``, column f is
-    ``cos(π f (j + ½) / n)``."""
+    ``cos(π f (j + ½) / n)``.
+
+    :func:`emogesture.audio.mfcc.dct_matrix` is the same basis scaled to be orthonormal, but computed in
+    float64 with another operation order: rescaled, it differs from this one in the last float32 bits (up
+    to about 1e-5 at 300 frames). Models are trained and generate with these exact values, so each keeps
+    its own."""
     j = torch.arange(n, dtype=torch.float32)[:, None] + 0.5
     return torch.cos(torch.pi * j * torch.arange(count) / n)
 

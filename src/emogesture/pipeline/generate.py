@@ -38,7 +38,7 @@ import torch
 from scipy.ndimage import gaussian_filter1d
 
 from emogesture.assets import bundled_model_file
-from emogesture.audio import check_speech, load_audio, window_activity
+from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
@@ -287,7 +287,7 @@ class GesturePipeline:
                ) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s);
         ``parts``: the latents wanted (default all three; an edit source needs fewer)."""
-        return self.speech.encode(waveform, 16000, hop_seconds, progress, times, parts)
+        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop_seconds, progress, times, parts)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -374,7 +374,8 @@ class GesturePipeline:
         picked = [c[rows] for c in conds]
         # residual noise stands for strokes the audio leaves open: none without sound, in full from half
         # a window of it (every window of the corpus's speech has at least 0.6)
-        weights = np.clip(window_activity(waveform, 16000, starts_s) / FULL_RESIDUAL_ACTIVITY, 0.0, 1.0)[rows]
+        activity = window_activity(waveform, TARGET_SAMPLE_RATE, starts_s)
+        weights = np.clip(activity / FULL_RESIDUAL_ACTIVITY, 0.0, 1.0)[rows]
         # candidate 0 of window i keeps the seed it has with one candidate
         seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                  for k, i, c in draws]
@@ -404,7 +405,7 @@ class GesturePipeline:
         drawn, starts = self.draw_windows(waveform, edit=edit, seed=seed, samples=samples, hop_seconds=hop_seconds,
                                           seam_candidates=seam_candidates, emotion_mode=emotion_mode,
                                           encoded=encoded, progress=progress, times=times)
-        num_frames = int(round(len(waveform) / 16000 * self.fps))
+        num_frames = int(round(len(waveform) / TARGET_SAMPLE_RATE * self.fps))
         with maybe_stage(times, "seams and poses"):
             return [self.to_sequence(stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts,
                                             num_frames)) for candidates in drawn]

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank, normalise_recording, window_starts
+from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank,
+                              normalise_recording, window_starts)
 from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
@@ -127,7 +128,7 @@ class SpeechLatentEncoder:
                     progress(len(x))
         return EncodedWindows(*(np.concatenate(p) if p else np.zeros((0, 0), np.float32) for p in stores))
 
-    def encode(self, waveform: np.ndarray, sample_rate: int = 16000, hop_seconds: float = 5.0,
+    def encode(self, waveform: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE, hop_seconds: float = 5.0,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                parts: tuple[str, ...] = LATENT_PARTS) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).

@@ -82,7 +82,12 @@ def step_generator(seed: int, step: int, rank: int, *stream: int) -> torch.Gener
 def make_ema(model: torch.nn.Module, decay: float) -> torch.nn.Module | None:
     """A frozen copy of ``model`` that :func:`update_ema` keeps as the exponential moving average of its
     weights (None when ``decay`` is 0). Registered as a submodule of the LightningModule, it is saved in
-    ``last.ckpt`` and resumes with it; the exported model is the average."""
+    ``last.ckpt`` and resumes with it; the exported model is the average.
+
+    Not torch's ``AveragedModel``: its first update copies the weights where this warm-up averages them,
+    ``get_ema_multi_avg_fn`` has no warm-up (a custom average sees its own update count, not the global
+    step), and its state (``module.*`` and ``n_averaged``) would not load the ``ema.*`` entries of
+    existing checkpoints."""
     if decay <= 0:
         return None
     if not decay < 1:

@@ -41,7 +41,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
-from emogesture.audio import detect_onsets, frame_energy, onset_strength
+from emogesture.audio import TARGET_SAMPLE_RATE, detect_onsets, frame_energy, onset_strength
 from emogesture.data.synthetic import hands
 from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter, smooth_noise
 from emogesture.types import FPS, NUM_JOINTS
@@ -118,7 +118,7 @@ def listener_yaw(active: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: TakeJitter,
-                rng: np.random.Generator, sample_rate: int = 16000,
+                rng: np.random.Generator, sample_rate: int = TARGET_SAMPLE_RATE,
                 hand_habits: np.ndarray | None = None) -> tuple[np.ndarray, list[Stroke]]:
     """Gestures for one take: ``(poses [T, 55, 3] float32 axis-angle, strokes)``, ``T = round(s × 30)``.
     ``hand_habits``: the speaker's liking for each hand shape (:func:`.hands.speaker_habits`; default alike)."""

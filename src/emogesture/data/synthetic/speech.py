@@ -24,11 +24,11 @@ import numpy as np
 import soundfile as sf
 from scipy.signal import lfilter, resample_poly
 
+from emogesture.audio import TARGET_SAMPLE_RATE as SAMPLE_RATE
 from emogesture.data.synthetic.factors import BASE_WORDS_PER_SECOND, Prosody, Voice
 from emogesture.data.synthetic.text import syllables, words_of
 from emogesture.errors import EmogestureError
 
-SAMPLE_RATE = 16000
 TARGET_RMS_DB = -24.0  # speech loudness before the emotion/speaker gain (dBFS over voiced frames)
 NOISE_FLOOR_DB = -66.0
 _EXECUTABLES = {"flite": "flite", "espeak-ng": "espeak-ng", "festival": "text2wave"}
