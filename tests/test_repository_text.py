@@ -96,15 +96,19 @@ def test_patterns_spare(line):
     assert not find_hits(line), line
 
 
+def _repository_texts():
+    """(name, text) of every repository file the checks read."""
+    for name in _repository_files():
+        if not _skipped(name):
+            text = _text(ROOT / name)
+            if text is not None:
+                yield name, text
+
+
 def test_no_stage_or_tracker_numbers_or_outside_references():
     """Every tracked text file: no numbered session, no issue number, no SPEC reference (file:line listed)."""
     problems = []
-    for name in _repository_files():
-        if _skipped(name):
-            continue
-        text = _text(ROOT / name)
-        if text is None:
-            continue
+    for name, text in _repository_texts():
         for number, what, line in find_hits(text):
             problems.append(f"{name}:{number}: {what}: {line[:160]}")
     assert not problems, "text that refers to development stages, tracker numbers or files outside the " \
@@ -127,12 +131,7 @@ def test_design_references_name_existing_sections():
     titles = set(re.findall(r"^## \d+\. (.+)$", design, re.MULTILINE))
     reference = re.compile(r"docs/design\.md`?,\s+'([^']+)'(?:\s+and\s+'([^']+)')?")
     missing = []
-    for name in _repository_files():
-        if _skipped(name):
-            continue
-        text = _text(ROOT / name)
-        if text is None:
-            continue
+    for name, text in _repository_texts():
         # references may wrap across a line break inside a docstring or a paragraph
         flat = re.sub(r"\s*\n\s*", " ", text)
         for match in reference.finditer(flat):
