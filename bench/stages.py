@@ -28,7 +28,8 @@ import machine  # noqa: E402
 from emogesture.audio import window_starts  # noqa: E402
 from emogesture.models.gesture import gesture_flops  # noqa: E402
 from emogesture.models.speech import flops_per_window  # noqa: E402
-from emogesture.pipeline.generate import HOP_SECONDS, WINDOW_SECONDS, GesturePipeline, candidates_drawn  # noqa: E402
+from emogesture.pipeline.generate import HOP_SECONDS, WINDOW_SECONDS, GesturePipeline  # noqa: E402
+from emogesture.pipeline.postprocess import candidates_drawn  # noqa: E402
 from emogesture.runtime import StageTimes  # noqa: E402
 
 ENCODERS = ("content_encoder", "emotion_encoder", "style_encoder")
@@ -73,7 +74,7 @@ def run(preset: str, precision: str, seconds: float, exports: bool, repeats: int
     draws = windows * candidates_drawn(windows, 4)
     sflops = flops_per_window(pipe.speech.loaded.config)
     gflops = gesture_flops(pipe.loaded.config)
-    steps = pipe.loaded.config.diffusion.num_inference_steps
+    steps = pipe.generation.num_inference_steps
     flops = {name: sflops[name] * windows for name in ENCODERS}
     flops["sampling"] = gflops["denoiser"] * steps * draws
     flops["motion decoder"] = gflops["decode"] * draws

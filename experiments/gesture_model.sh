@@ -51,8 +51,8 @@ train() {  # name variant steps [--set ...] -> trains into $WORK/gesture_<name> 
 # "ours without the stream": the tiny design before the timing stream, 48 cosines, no timing stream, no wrist path
 train disjoint disjoint "$JOINT_STEPS" & train no_prior no_prior "$STEPS" & train no_audio no_audio "$STEPS" &
 train no_stream joint "$JOINT_STEPS" --set model.vae.low_frequency_path=48 --set model.vae.timing_features=0 \
-    --set model.vae.timing_smoothing=0 --set model.vae.timing_guidance=1 --set model.vae.output_smoothing=0 \
-    --set model.vae.output_lowpass_hz=0 --set model.vae.detail_path=0 --set "model.vae.detail_columns=[]" &
+    --set model.vae.timing_smoothing=0 --set generation.timing_guidance=1 --set generation.output_smoothing=0 \
+    --set generation.output_lowpass_hz=0 --set model.vae.detail_path=0 --set "model.vae.detail_columns=[]" &
 wait
 { grep '^gesture' experiments/reports/bundled_model/training_time.txt | sed 's/^gesture/joint (ours, the bundled model)/'
   for f in "$WORK"/gesture_{no_stream,disjoint,no_prior,no_audio}.time; do if [ -f "$f" ]; then cat "$f"; fi; done

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from emogesture.checkpoints import write_checksums, write_text_atomic
+from emogesture.bundle import write_checksums
+from emogesture.checkpoints import write_text_atomic
 from emogesture.data.synthetic.corpus import CORPUS_VERSION
 from emogesture.pipeline.generate import HOP_SECONDS
 

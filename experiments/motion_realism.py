@@ -25,7 +25,7 @@ from pathlib import Path
 from emogesture.audio import load_audio
 from emogesture.data.beat import read_split_csv
 from emogesture.data.real_speech import RECORDINGS, load_real_recording
-from emogesture.eval.gesture_models import sequence_joints
+from emogesture.eval.seams import sequence_joints
 from emogesture.eval.motion_stats import file_statistics, motion_statistics, npz_files
 from emogesture.pipeline.generate import GesturePipeline
 

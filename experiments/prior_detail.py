@@ -25,7 +25,7 @@ import torch
 from emogesture.audio.timing import timing_stream
 from emogesture.data.cache import open_cache
 from emogesture.eval.motion_stats import joint_angular_speed
-from emogesture.models.motion_vae import lowpass
+from emogesture.motion.filters import lowpass
 from emogesture.motion import features_to_poses
 from emogesture.motion.skeleton import JOINT_NAMES
 from emogesture.pipeline.conditions import decode_latents, encode_motion
@@ -82,7 +82,7 @@ def main() -> None:
         if i == 0:  # every model poses the same skeleton
             truth = joints(pipe, motion)
             row("ground truth", speeds(pipe, motion))
-            cutoff = pipe.loaded.config.vae.output_lowpass_hz
+            cutoff = pipe.generation.output_lowpass_hz
             if cutoff:
                 row(f"ground truth, low-passed at {cutoff:g} Hz", speeds(pipe, lowpass(torch.tensor(motion), cutoff).numpy()))
         z = encode_motion(pipe.loaded, motion)

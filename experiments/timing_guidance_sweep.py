@@ -1,7 +1,7 @@
 """The generation settings of a gesture model whose decoder hears the speech's timing,
-swept on the val texts: timing guidance w (``vae.timing_guidance``), output smoothing σ in frames
-(``vae.output_smoothing``), the output low-pass's cutoff c in Hz (``vae.output_lowpass_hz``, 0 = off)
-and the residual-noise scale r (``diffusion.residual_scale``). The same trained model, the same seeds
+swept on the val texts: timing guidance w (``timing_guidance``), output smoothing σ in frames
+(``output_smoothing``), the output low-pass's cutoff c in Hz (``output_lowpass_hz``, 0 = off)
+and the residual-noise scale r (``residual_scale``) of its :class:`GenerationConfig`. The same trained model, the same seeds
 and the same evaluator for every row; writes a markdown table.
 
 Usage: timing_guidance_sweep.py GESTURE_RUN CACHE EXTRACTOR_RUN OUT.md [--split val]
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -67,17 +68,16 @@ def main() -> None:
     seeds = window_seeds(args.seed, len(conds[0]))
     other = other_window_pairs(cache.split(args.split).text, 0, 1)[0]
     ev = GestureEvaluator(cache, args.split, load_model(args.extractor, "extractor"))
-    cfg = gesture.config
     rows = []
     gt, _ = ev.score(np.asarray(ev.windows.motion, np.float32), None, 0)
     gt_stats = ev.motion_stats(np.asarray(ev.windows.motion, np.float32))
     rows.append(("ground truth", gt, gt_stats))
     for r, w, s, c in [*args.settings, ("other", *args.other)]:
-        cfg.diffusion.residual_scale = 1.0 if r == "other" else r
-        cfg.vae.timing_guidance, cfg.vae.output_smoothing, cfg.vae.output_lowpass_hz = w, s, c
+        settings = replace(gesture.generation, residual_scale=1.0 if r == "other" else r, timing_guidance=w,
+                           output_smoothing=s, output_lowpass_hz=c)
         stream = conds[-1][other] if r == "other" else conds[-1]
-        motion = generate_from_conditions(gesture, [*conds[:-1], stream], seeds,
-                                          residual=cfg.diffusion.residual_scale > 0)
+        motion = generate_from_conditions(gesture, [*conds[:-1], stream], seeds, generation=settings,
+                                          residual=settings.residual_scale > 0)
         row, _ = ev.score(motion, None, 0)
         setting = f"w {w:g}, σ {s:g}" + (f", low-pass {c:g} Hz" if c else "")
         name = (f"r 1, {setting}, the stream of another window" if r == "other" else f"r {r:g}, {setting}")
@@ -88,7 +88,7 @@ def main() -> None:
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
              f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
-             "low-pass's cutoff (`vae.output_lowpass_hz`). Rhythm: rhythm gain "
+             "low-pass's cutoff (`output_lowpass_hz`). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`); GT's gain / spread is in the gesture report.", "",
              "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | wrists L / R (rad/frame) |",
              "|---|---|---|---|---|---|---|---|"]

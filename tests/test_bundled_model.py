@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import subprocess
 import sys
@@ -14,7 +15,8 @@ import soundfile as sf
 import torch
 
 from emogesture.assets import BUNDLED_MODEL, DEMO_CLIPS, bundled_model_file
-from emogesture.checkpoints import load_model, verify_checksums
+from emogesture.bundle import verify_checksums
+from emogesture.checkpoints import load_model
 from emogesture.data.beat import EMOTIONS
 from emogesture.eval.metrics import wrist_speed
 from emogesture.motion import SkeletonBody
@@ -206,50 +208,66 @@ def test_bf16_autocast_drift_of_the_bundled_model(pipe, clip30):
 def test_bundle_changes_generation_settings_and_nothing_else(tmp_path):
     out = tmp_path / "b"
     proc = run_cli("bundle", "--speech", str(bundled_model_file("speech")), "--gesture",
-                   str(bundled_model_file("gesture")), "--out", str(out), "--set", "vae.timing_guidance=2.5",
-                   "--set", "vae.output_lowpass_hz=3")
+                   str(bundled_model_file("gesture")), "--out", str(out), "--set", "timing_guidance=2.5",
+                   "--set", "output_lowpass_hz=3")
     assert proc.returncode == 0, proc.stderr
     names = verify_checksums(out)
     assert "gesture.json" in names and "extractor.json" not in names
     shipped, rebundled = load_model(bundled_model_file("gesture"), "gesture"), load_model(out / "gesture.json", "gesture")
-    assert (rebundled.config.vae.timing_guidance, rebundled.config.vae.output_lowpass_hz) == (2.5, 3.0)
-    assert rebundled.config.vae.low_frequency_path == shipped.config.vae.low_frequency_path
+    assert (rebundled.generation.timing_guidance, rebundled.generation.output_lowpass_hz) == (2.5, 3.0)
+    assert rebundled.generation.num_inference_steps == shipped.generation.num_inference_steps
+    assert rebundled.config == shipped.config
     assert rebundled.meta["weights_sha256"] == shipped.meta["weights_sha256"]
     proc = run_cli("bundle", "--speech", str(bundled_model_file("speech")), "--gesture",
                    str(bundled_model_file("gesture")), "--out", str(tmp_path / "c"), "--set", "vae.width=8")
-    assert proc.returncode != 0 and "only generation settings" in proc.stderr and "Traceback" not in proc.stderr
+    assert proc.returncode != 0 and "generation setting is key=value" in proc.stderr and "Traceback" not in proc.stderr
 
 
 def test_the_bundle_and_the_experiment_scripts_generate_with_the_tiny_presets_settings():
-    from emogesture.models.gesture import GENERATION_SETTINGS, GestureModelConfig
+    from emogesture.models.generation import GenerationConfig
 
     line = next(x for x in (Path(__file__).parents[1] / "experiments" / "common.sh").read_text().splitlines()
                 if x.startswith("GENERATION="))
     scripted = {k.strip(): v.strip(" )") for k, v in (item.split("=", 1) for item in line.split("--set ")[1:])}
-    assert scripted and set(scripted) <= set(GENERATION_SETTINGS)
-    tiny = GestureModelConfig.preset("tiny")
-    shipped = load_model(bundled_model_file("gesture"), "gesture").config
-
-    def value(config, key):
-        section, field = key.split(".")
-        return getattr(getattr(config, section), field)
-
-    for key in GENERATION_SETTINGS:
-        assert value(shipped, key) == value(tiny, key), key
-        if key in scripted:
-            assert float(scripted[key]) == value(tiny, key), key
+    fields = [f.name for f in dataclasses.fields(GenerationConfig)]
+    assert scripted and set(scripted) <= set(fields)
+    tiny = GenerationConfig.preset("tiny")
+    shipped = load_model(bundled_model_file("gesture"), "gesture").generation
+    assert shipped == tiny
+    for key, value in scripted.items():
+        assert float(value) == getattr(tiny, key), key
 
 
 def test_bundle_help_lists_exactly_the_generation_settings():
     """The CLI's parser does not import the models (a command loads only what it uses), so ``bundle --set``'s
-    help names the settings by hand; this keeps it equal to GENERATION_SETTINGS."""
+    help names the settings by hand; this keeps it equal to GenerationConfig's fields."""
     from emogesture.cli.main import build_parser
-    from emogesture.models.gesture import GENERATION_SETTINGS
+    from emogesture.models.generation import GenerationConfig
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
     action = next(a for a in sub.choices["bundle"]._actions if a.dest == "generation")
     listed = action.help.split(":", 1)[1].replace(" ", "").split(",")
-    assert listed == list(GENERATION_SETTINGS)
+    assert listed == [f.name for f in dataclasses.fields(GenerationConfig)]
+
+
+def test_models_saved_before_the_generation_section_load_with_their_settings(tmp_path):
+    """A gesture model whose JSON keeps its generation settings inside its config (as the files of
+    2026-11-25 and before do) loads them as its GenerationConfig, and its checksum still holds."""
+    from emogesture.checkpoints import content_checksum
+
+    src = load_model(bundled_model_file("gesture"), "gesture")
+    meta = json.loads(src.path.read_text())
+    meta.pop("generation", None)
+    meta["config"]["vae"].update(timing_guidance=3.5, output_smoothing=0.0, output_lowpass_hz=3.0)
+    meta["config"]["diffusion"].update(num_inference_steps=25, residual_scale=0.75)
+    meta["checksum_sha256"] = content_checksum(meta)
+    for name in (meta["weights"],):
+        (tmp_path / name).write_bytes((src.path.parent / name).read_bytes())
+    (tmp_path / "gesture.json").write_text(json.dumps(meta))
+    old = load_model(tmp_path / "gesture.json", "gesture")
+    assert (old.generation.timing_guidance, old.generation.output_lowpass_hz) == (3.5, 3.0)
+    assert (old.generation.num_inference_steps, old.generation.residual_scale) == (25, 0.75)
+    assert old.generation.seam_candidates == 4 and old.config == src.config
 
 
 def test_speech_encoder_batches_are_bounded_on_a_cpu_and_change_nothing(monkeypatch):

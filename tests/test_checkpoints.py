@@ -8,7 +8,7 @@ import sys
 import pytest
 import torch
 
-from emogesture.checkpoints import (_random_initialisation_skipped, _sha256, content_checksum, load_model, read_meta,
+from emogesture.checkpoints import (_random_initialisation_skipped, content_checksum, file_sha256, load_model, read_meta,
                                    save_model)
 from emogesture.errors import InputFileError, OutputExistsError
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
@@ -73,7 +73,7 @@ def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatc
     save_file({k: v.contiguous() for k, v in state.items()}, str(tmp_path / "g" / "model.safetensors"),
               metadata={"format": "pt"})
     meta = json.loads((tmp_path / "g" / "model.json").read_text())
-    meta["weights_sha256"] = _sha256(tmp_path / "g" / "model.safetensors")
+    meta["weights_sha256"] = file_sha256(tmp_path / "g" / "model.safetensors")
     meta["checksum_sha256"] = content_checksum(meta)
     (tmp_path / "g" / "model.json").write_text(json.dumps(meta))
     g = load_model(tmp_path / "g", "gesture").model
@@ -168,10 +168,10 @@ def test_every_broken_file_is_a_one_line_error_naming_it(tmp_path):
                                                       "ff_dim": 2 * model.config.ff_dim}))
     save_model(tmp_path / "wide", "extractor", other, other.config)
     weights.write_bytes((tmp_path / "wide" / "model.safetensors").read_bytes())
-    _reseal(meta_path, lambda m: m.update(weights_sha256=_sha256(weights)))
+    _reseal(meta_path, lambda m: m.update(weights_sha256=file_sha256(weights)))
     expect("size mismatch|do not fit", "model.safetensors")
     weights.write_bytes(b"\x00" * 64)
-    _reseal(meta_path, lambda m: m.update(weights_sha256=_sha256(weights)))
+    _reseal(meta_path, lambda m: m.update(weights_sha256=file_sha256(weights)))
     expect("corrupt weights file", "model.safetensors")
     meta_path.write_bytes(b"\xff\xfe\x00garbage")
     expect("not a readable model description")

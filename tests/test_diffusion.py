@@ -12,6 +12,7 @@ from emogesture.diffusion import (
 )
 from emogesture.errors import ConfigError
 from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
+from emogesture.models.generation import GenerationConfig
 from emogesture.models.speech import AudioLatents
 
 
@@ -51,14 +52,16 @@ def test_config_is_explicit_and_validated(ddim, ddpm):
     assert ddim.config.steps_offset == 1 and ddim.config.beta_schedule == "scaled_linear"
     assert ddpm.config.variance_type == "fixed_small" and ddpm.config.clip_sample is False
     assert ddpm.config.prediction_type == "epsilon" and ddpm.config.num_train_timesteps == 1000
-    for bad in ({"beta_schedule": "cosine"}, {"num_inference_steps": 0}, {"beta_start": 0.02}):
+    for bad in ({"beta_schedule": "cosine"}, {"beta_start": 0.02}):
         with pytest.raises(ConfigError):
             DiffusionConfig(**bad)
+    with pytest.raises(ConfigError, match="num_inference_steps"):
+        make_ddim_scheduler(DiffusionConfig(), 0)
 
 
 def test_ddim_timesteps_leading_with_offset(ddim):
     assert ddim.timesteps.tolist() == [20 * i + 1 for i in reversed(range(50))]  # 981, 961, ..., 1
-    s = make_ddim_scheduler(DiffusionConfig(num_inference_steps=25))
+    s = make_ddim_scheduler(DiffusionConfig(), 25)
     assert s.timesteps.tolist() == [40 * i + 1 for i in reversed(range(25))]
 
 
@@ -217,7 +220,7 @@ def test_ddim_sample_is_reproducible_and_batch_independent(tiny, ddim):
 
 
 def test_ddim_sample_with_eta_is_seeded_per_sample(tiny):
-    s = make_ddim_scheduler(DiffusionConfig(num_inference_steps=10))
+    s = make_ddim_scheduler(DiffusionConfig(), 10)
     conds = _conds(2, 16)
     a = ddim_sample(tiny, s, conds, make_generators([5, 6]), eta=1.0)
     alone = ddim_sample(tiny, s, [c[:1] for c in conds], make_generators([5]), eta=1.0)
@@ -314,7 +317,7 @@ def test_residual_noise_is_seeded_per_sample_and_has_the_calibrated_covariance()
     with pytest.raises(ValueError, match="residual factor"):
         add_residual_noise(z, torch.eye(3), _gen(0))
     with pytest.raises(ConfigError, match="residual_scale"):
-        DiffusionConfig(residual_scale=-1.0)
+        GenerationConfig(residual_scale=-1.0)
 
 
 # --- our DDIM steps against diffusers' ----------------------------------------------------------------------
@@ -329,8 +332,10 @@ def test_residual_noise_is_seeded_per_sample_and_has_the_calibrated_covariance()
 ])
 @pytest.mark.parametrize("eta", [0.0, 0.7])
 def test_ddim_sampler_matches_diffusers(settings, eta):
+    settings = dict(settings)
+    steps = settings.pop("num_inference_steps", 50)
     cfg = DiffusionConfig(**settings)
-    ours, theirs = make_ddim_scheduler(cfg), make_ddim_scheduler(cfg, backend="diffusers")
+    ours, theirs = make_ddim_scheduler(cfg, steps), make_ddim_scheduler(cfg, steps, backend="diffusers")
     assert ours.timesteps.tolist() == theirs.timesteps.tolist()
     torch.testing.assert_close(ours.alphas_cumprod, theirs.alphas_cumprod)
     assert float(ours.final_alpha_cumprod) == pytest.approx(float(theirs.final_alpha_cumprod))

@@ -17,12 +17,13 @@ from emogesture.config import to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.prepare import PrepareConfig
 from emogesture.errors import EmogestureError
+from emogesture.models.generation import GenerationConfig
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
-from emogesture.eval.gesture_models import seam_jumps
+from emogesture.eval.seams import seam_jumps
 from emogesture.motion import SkeletonBody
-from emogesture.pipeline.generate import (HOP_SECONDS, EditRequest, GesturePipeline, choose_seam_candidates, largest_joint_jumps,
-                                         seam_costs, stitch)
+from emogesture.pipeline.generate import HOP_SECONDS, EditRequest, GesturePipeline
+from emogesture.pipeline.postprocess import choose_seam_candidates, largest_joint_jumps, seam_costs, stitch
 
 
 @pytest.fixture(scope="module")
@@ -34,14 +35,14 @@ def runs(tmp_path_factory):
         "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
         "prepare_config": to_dict(PrepareConfig()), "step": 0})
     gcfg = GestureModelConfig.preset("tiny")
-    gcfg.diffusion.num_inference_steps = 5
     import json
     sha = json.loads(speech_json.read_text())["weights_sha256"]
     save_model(d / "gesture", "gesture", GestureModel(gcfg), gcfg, {
         "emotions": list(EMOTIONS), "motion_mean": [0.0] * 282, "motion_std": [0.3] * 282,
         "features": to_dict(PrepareConfig().features), "variant": "joint", "fps": 30,
         "speech_model": str(speech_json), "speech_weights_sha256": sha,
-        "emotion_latent_means": {e: [float(i)] * 256 for i, e in enumerate(EMOTIONS)}, "step": 0})
+        "emotion_latent_means": {e: [float(i)] * 256 for i, e in enumerate(EMOTIONS)}, "step": 0},
+        generation=GenerationConfig(num_inference_steps=5))
     rng = np.random.default_rng(0)
     t = np.arange(int(65 * 16000)) / 16000
     wave = (0.3 * np.sin(2 * np.pi * 180 * t) * (np.sin(2 * np.pi * 1.5 * t) > 0) + 0.01 * rng.normal(size=t.size))
@@ -249,7 +250,7 @@ def test_float32_generation_on_a_gpu_turns_tf32_off_and_puts_it_back(before):
 
 
 def test_a_single_window_draws_one_candidate(runs):
-    from emogesture.pipeline.generate import candidates_drawn
+    from emogesture.pipeline.postprocess import candidates_drawn
 
     assert candidates_drawn(1, 4) == 1 and candidates_drawn(2, 4) == 4
     pipe = GesturePipeline.from_run(runs / "gesture")
@@ -374,7 +375,7 @@ def test_flags_that_would_be_ignored_are_errors(tmp_path, capsys):
 
 
 def test_quiet_windows_settle_and_speech_windows_do_not():
-    from emogesture.pipeline.generate import settle_quiet_windows
+    from emogesture.pipeline.postprocess import settle_quiet_windows
 
     rng = np.random.default_rng(0)
     t = np.arange(300) / 30.0

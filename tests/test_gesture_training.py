@@ -5,6 +5,7 @@ The short version of experiments/gesture_model.sh: every variant trains a few st
 Also unit tests of the pieces of that report (seam jumps, edit targets, checks).
 """
 
+import dataclasses
 import json
 import subprocess
 
@@ -15,18 +16,26 @@ from emogesture.checkpoints import load_model, save_model
 from emogesture.data.beat import EMOTIONS, write_split_csv
 from emogesture.data.cache import open_cache
 from emogesture.data.prepare import prepare
-from emogesture.eval.gesture_models import edit_targets, seam_jumps
-from emogesture.models.gesture import GestureModelConfig
+from emogesture.eval.gesture_models import edit_targets
+from emogesture.eval.seams import seam_jumps
+from emogesture.models.generation import GenerationConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.train.speech import speech_model_extra
 
 from helpers import cli, make_root
 
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
-TINY_RESIDUAL_SCALE = GestureModelConfig.preset("tiny").diffusion.residual_scale
+TINY_RESIDUAL_SCALE = GenerationConfig.preset("tiny").residual_scale
 SMALL = ("--set", "batch_size=4", "--set", "align_ddim_steps=2", "--set", "align_every=1",
          "--set", "disjoint_prior_steps=2", "--set", "prior_warmup_steps=2",
-         "--set", "model.diffusion.num_inference_steps=3")
+         "--set", "generation.num_inference_steps=3")
+
+#: the paper preset (ε-prediction, no timing stream, no residual noise, 50 DDIM steps) with narrow networks
+PAPER_AT_TINY_WIDTH = ("--set", "batch_size=4", "--set", "align_ddim_steps=2", "--set", "model.vae.width=32",
+                       "--set", "model.vae.layers=3", "--set", "model.vae.ff_dim=64", "--set", "model.vae.heads=2",
+                       "--set", "model.vae.dropout=0", "--set", "model.denoiser.width=256",
+                       "--set", "model.denoiser.layers=3", "--set", "model.denoiser.ff_dim=64",
+                       "--set", "model.denoiser.dropout=0")
 
 
 @pytest.fixture(scope="module")
@@ -53,6 +62,10 @@ def trained(tmp_path_factory):
                              "--set", "losses.vspeed=1", "--set", "losses.align_speed=1", "--set", "losses.vaccel=1",
                              "--set", "losses.align_accel=1", "--log-every", 1),
                          capture_output=True, text=True)  # the denoiser hears the speech's timing
+    assert out.returncode == 0, out.stderr[-2000:]
+    out = subprocess.run(cli("train", "gesture", "--preset", "paper", "--data", d / "cache", "--speech", d / "speech",
+                             "--out", d / "paper", "--steps", 4, "--quiet", *PAPER_AT_TINY_WIDTH),
+                         capture_output=True, text=True)  # the paper's design, at a CPU test's width
     assert out.returncode == 0, out.stderr[-2000:]
     return d
 
@@ -145,7 +158,7 @@ def test_generation_is_seeded_and_batch_independent(trained):
 
 
 def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
-    from emogesture.checkpoints import _sha256, content_checksum, model_paths
+    from emogesture.checkpoints import content_checksum, file_sha256, model_paths
     from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
     from safetensors.torch import load_file, save_file
 
@@ -154,7 +167,7 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
         model = load_model(trained / variant, "gesture")
         stats = model.extra["residual_calibration"]
         assert stats["split"] == "val" and stats["windows"] == val_windows and stats["step"] == 4, variant
-        assert model.model.calibrated and model.config.diffusion.residual_scale == TINY_RESIDUAL_SCALE > 0
+        assert model.model.calibrated and model.generation.residual_scale == TINY_RESIDUAL_SCALE > 0
     model = load_model(trained / "joint", "gesture")
     rng = np.random.default_rng(1)
     conds = [rng.normal(size=(3, 256)).astype(np.float32) for _ in range(3)]
@@ -175,7 +188,7 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     out = subprocess.run(cli(*args), capture_output=True, text=True)
     assert out.returncode == 0 and f"{val_windows} val windows" in out.stdout, out.stderr[-2000:]
     copy = load_model(tmp_path / "cal", "gesture")
-    assert copy.config.diffusion.residual_scale == 0.5 and copy.extra["residual_calibration"]["seed"] == 3
+    assert copy.generation.residual_scale == 0.5 and copy.extra["residual_calibration"]["seed"] == 3
     again = subprocess.run(cli(*args), capture_output=True, text=True)
     assert again.returncode != 0 and "--overwrite" in again.stderr
     # ... and a model file from before calibration existed loads uncalibrated: no residual noise
@@ -184,7 +197,7 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     del state["latent_residual_tril"]
     save_file(state, str(weights))
     meta = json.loads(meta_path.read_text())
-    meta["weights_sha256"] = _sha256(weights)
+    meta["weights_sha256"] = file_sha256(weights)
     meta["checksum_sha256"] = content_checksum(meta)
     meta_path.write_text(json.dumps(meta))
     old = load_model(tmp_path / "cal", "gesture")
@@ -241,7 +254,7 @@ def test_seam_jumps_find_a_jump_at_a_seam():
 
 
 def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
-    from emogesture.eval.gesture_models import seam_statistics, split_jumps
+    from emogesture.eval.seams import seam_statistics, split_jumps
 
     rng = np.random.default_rng(0)
     starts_s = [0.0, 8.0, 16.0, 24.0, 32.0, 40.0, 48.0, 55.0]  # 65 s, windows every 8 s
@@ -261,7 +274,7 @@ def test_seam_statistics_flag_hard_cuts_and_leave_out_take_changes():
 
 
 def test_windows_own_jumps_keep_the_faster_window_where_two_overlap():
-    from emogesture.eval.gesture_models import windows_own_jumps
+    from emogesture.eval.seams import windows_own_jumps
 
     jumps = np.array([[1.0, 1.0, 1.0, 1.0], [2.0, 0.5, 0.5, 0.5]])  # two 5-frame windows, starts 0 and 2
     assert windows_own_jumps(jumps, [0, 2], 7).tolist() == [1.0, 1.0, 2.0, 1.0, 0.5, 0.5]
@@ -328,19 +341,22 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     assert not np.allclose(own, other)  # the stream changes the motion, all else equal
     # the generation settings (guidance, output smoothing and low-pass) act at generation only, never on
     # the prior's reconstruction; smoothing and the low-pass lower the frame-to-frame change
-    vae = model.config.vae
-    assert (vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz) == (5.0, 0.0, 4.0)  # the tiny preset's
+    g = model.generation
+    assert (g.timing_guidance, g.output_smoothing, g.output_lowpass_hz) == (5.0, 0.0, 4.0)  # the tiny preset's
+
+    def settings(guidance, smoothing, cutoff):
+        return dataclasses.replace(g, timing_guidance=guidance, output_smoothing=smoothing, output_lowpass_hz=cutoff)
+
     made = {}
     for setting in ((1.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 2.0, 0.0), (1.0, 0.0, 2.75)):
-        vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = setting
-        made[setting] = generate_from_conditions(model, conds, seeds, residual=False)
+        made[setting] = generate_from_conditions(model, conds, seeds, generation=settings(*setting), residual=False)
     assert not np.allclose(made[1.0, 0.0, 0.0], made[3.0, 0.0, 0.0])
     change = {k: np.abs(np.diff(v, axis=1)).mean() for k, v in made.items()}
     assert change[1.0, 2.0, 0.0] < 0.8 * change[1.0, 0.0, 0.0] and change[1.0, 0.0, 2.75] < 0.8 * change[1.0, 0.0, 0.0]
-    vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = 4.0, 1.75, 2.75
+    model.generation = settings(4.0, 1.75, 2.75)
     gt = np.asarray(cache.split("test").motion[:2], np.float32)
     plain = reconstruct_motion(model, gt, timing=conds[3][:2])
-    vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz = 1.0, 0.0, 0.0
+    model.generation = settings(1.0, 0.0, 0.0)
     np.testing.assert_allclose(reconstruct_motion(model, gt, timing=conds[3][:2]), plain, atol=1e-5)
     edited = emotion_label_edit(model, conds, np.zeros(len(conds[0]), np.int64))  # an edit keeps the own stream
     assert len(edited) == 4 and edited[3] is conds[3] and edited[0] is conds[0]
@@ -441,3 +457,21 @@ def test_train_refuses_more_devices_than_it_has(monkeypatch, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--devices 2: torch sees 1 GPU(s)" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_the_papers_design_trains_and_generates_through_the_pipeline(trained):
+    """The paper preset's gesture model (ε-prediction, no timing stream, no residual noise) goes the same way
+    as tiny's: trained, stored with its generation settings, and animating speech through the pipeline."""
+    from emogesture.audio import load_audio
+    from emogesture.pipeline.generate import GesturePipeline
+
+    model = load_model(trained / "paper", "gesture")
+    assert model.config.diffusion.prediction_type == "epsilon" and not model.config.hears_timing
+    assert model.generation == GenerationConfig.preset("paper") and not model.model.calibrated
+    pipe = GesturePipeline.from_run(trained / "paper")
+    wave, _ = load_audio(next((trained / "root" / "wave16k").glob("*.wav")))
+    fast = dataclasses.replace(pipe.generation, num_inference_steps=5)
+    a, b = (pipe.generate(wave, seed=s, seam_candidates=2, generation=fast)[0] for s in (0, 1))
+    assert len(a.poses) == int(round(len(wave) / 16000 * 30)) and np.isfinite(a.poses).all()
+    assert not np.allclose(a.poses, b.poses)  # the seed draws the motion
+

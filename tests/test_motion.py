@@ -11,8 +11,8 @@ import torch
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion import (
     JOINT_NAMES, LOWER_BODY_JOINTS, PARENTS, UPPER_BODY_JOINTS, FeatureStats, MotionFeatureSpec,
-    OutputExistsError, SkeletonBody, SMPLXBody, axis_angle_to_matrix, axis_angle_to_rot6d,
-    features_to_poses, interpolate_rotations, load_body, load_smplx_npz, matrix_to_axis_angle,
+    OutputExistsError, SkeletonBody, axis_angle_to_matrix, axis_angle_to_rot6d,
+    features_to_poses, interpolate_rotations, load_smplx_npz, matrix_to_axis_angle,
     matrix_to_rot6d, poses_to_features, rest_joints, rest_offsets, rot6d_to_axis_angle, rot6d_to_matrix,
     save_smplx_npz
 )
@@ -222,15 +222,6 @@ def test_fk_matches_mannequin_x():
     error = float(np.abs(reference[:, m_index] - ours[:, s_index]).max())
     print(f"max FK difference vs mannequin-x over 52 joints: {error:.2e} m")
     assert len(s_index) == 52 and error < 1e-5
-
-
-def test_load_body_and_missing_smplx_model(tmp_path):
-    assert isinstance(load_body(), SkeletonBody)
-    missing = tmp_path / "SMPLX_NEUTRAL_2020.npz"
-    with pytest.raises(InputFileError, match="SMPLX_NEUTRAL_2020.npz: SMPL-X model file not found"):
-        load_body(missing)
-    with pytest.raises(InputFileError, match=str(tmp_path)):
-        SMPLXBody(tmp_path)  # a folder without a model file
 
 
 # --- npz files -------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import torch
 import torch.nn.functional as F
 
 from emogesture.errors import ConfigError
+from emogesture.models.generation import GenerationConfig
 from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig, kl_loss
 from emogesture.models.skip_transformer import PosSelfAttention, SkipTransformer, SkipTransformerConfig
 from emogesture.models.vit import CrossAttention
@@ -370,7 +371,7 @@ def test_detail_path_writes_and_reads_only_its_columns():
 
 
 def test_timing_stream_smoothing_removes_frame_jitter_before_the_decoder():
-    from emogesture.models.motion_vae import gaussian_smooth
+    from emogesture.motion.filters import gaussian_smooth
 
     x = torch.zeros(1, 60, 2)
     x[0, 30, 0] = 1.0
@@ -408,15 +409,15 @@ def test_decode_pair_gives_the_decoding_with_and_without_the_stream():
         torch.testing.assert_close(pair[1], deaf, atol=1e-5, rtol=1e-5)
     assert not torch.allclose(heard, deaf)
     with pytest.raises(ConfigError, match="timing_guidance"):
-        MotionVAEConfig(timing_guidance=-1)
+        GenerationConfig(timing_guidance=-1)
     with pytest.raises(ConfigError, match="output_smoothing"):
-        MotionVAEConfig(output_smoothing=-0.5)
+        GenerationConfig(output_smoothing=-0.5)
 
 
 def test_output_lowpass_keeps_strokes_below_the_cutoff_and_removes_jitter_above_it():
     import math
 
-    from emogesture.models.motion_vae import gaussian_smooth, lowpass
+    from emogesture.motion.filters import gaussian_smooth, lowpass
 
     t = torch.arange(300, dtype=torch.float32) / 30
     sine = lambda hz: torch.sin(2 * math.pi * hz * t)  # noqa: E731
@@ -431,13 +432,13 @@ def test_output_lowpass_keeps_strokes_below_the_cutoff_and_removes_jitter_above_
     assert (g[0, mid, 2].std() / x[0, mid, 2].std()) > 0.01 and (g[0, mid, 1].std() / x[0, mid, 1].std()) < 0.8
     assert lowpass(torch.randn(2, 5, 3), 2.75).shape == (2, 5, 3)  # windows shorter than the kernel
     with pytest.raises(ConfigError, match="output_lowpass_hz"):
-        MotionVAEConfig(output_lowpass_hz=15.0)
+        GenerationConfig(output_lowpass_hz=15.0)
     with pytest.raises(ConfigError, match="output_lowpass_hz"):
-        MotionVAEConfig(output_lowpass_hz=-1.0)
+        GenerationConfig(output_lowpass_hz=-1.0)
 
 
 def test_decoder_smoothing_ends_the_decoder_in_training_and_generation():
-    from emogesture.models.motion_vae import gaussian_smooth
+    from emogesture.motion.filters import gaussian_smooth
 
     torch.manual_seed(0)
     kw = dict(frames=40, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32, low_frequency_path=4)
@@ -462,17 +463,16 @@ def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_
     from emogesture.models.gesture import GestureModelConfig
 
     for variant in ("joint", "disjoint"):
-        vae = GestureModelConfig.preset("tiny", variant).vae
-        assert (vae.low_frequency_path, vae.timing_features, vae.timing_guidance) == (16, 2, 5.0)
-        assert (vae.output_smoothing, vae.output_lowpass_hz) == (0.0, 4.0)
-    assert GestureModelConfig.preset("tiny").diffusion.num_inference_steps == 10  # paper: 50
+        vae, g = GestureModelConfig.preset("tiny", variant).vae, GenerationConfig.preset("tiny", variant)
+        assert (vae.low_frequency_path, vae.timing_features, g.timing_guidance) == (16, 2, 5.0)
+        assert (g.output_smoothing, g.output_lowpass_hz, g.num_inference_steps) == (0.0, 4.0, 10)  # paper: 50 steps
     for variant in ("no_prior", "no_audio"):  # the ablations keep the design without the timing stream
-        c = GestureModelConfig.preset("tiny", variant)
-        assert not c.hears_timing and c.vae.low_frequency_path == 48 and c.vae.output_smoothing == 0
-        assert c.vae.output_lowpass_hz == 0
-    paper = GestureModelConfig.preset("paper")
-    assert not paper.hears_timing and paper.vae.low_frequency_path == 0 and paper.vae.timing_guidance == 1.0
-    assert paper.diffusion.num_inference_steps == 50
+        c, g = GestureModelConfig.preset("tiny", variant), GenerationConfig.preset("tiny", variant)
+        assert not c.hears_timing and c.vae.low_frequency_path == 48 and g.output_smoothing == 0
+        assert g.output_lowpass_hz == 0 and g.timing_guidance == 1.0
+    paper, g = GestureModelConfig.preset("paper"), GenerationConfig.preset("paper")
+    assert not paper.hears_timing and paper.vae.low_frequency_path == 0 and g.timing_guidance == 1.0
+    assert g.num_inference_steps == 50 and g.residual_scale == 0
 
 
 def test_the_posterior_draw_is_made_on_the_generators_device_and_moved(tiny, monkeypatch):

@@ -29,6 +29,7 @@ from emogesture import __version__
 from emogesture.config import from_dict, to_dict
 from emogesture.errors import ConfigError, EmogestureError, InputFileError, OutputExistsError
 from emogesture.fileio import atomic_output, fsync_dir
+from emogesture.models.generation import GenerationConfig, split_legacy_settings
 
 FORMAT = "emogesture-model"
 FORMAT_VERSION = 2
@@ -70,9 +71,11 @@ class LoadedModel:
     extra: dict
     meta: dict
     path: Path
+    #: how a gesture model generates (the ``generation`` section of its JSON); None for other kinds
+    generation: GenerationConfig | None = None
 
 
-def _sha256(path: Path) -> str:
+def file_sha256(path: Path) -> str:
     h = hashlib.sha256()
     with path.open("rb") as f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
@@ -118,6 +121,8 @@ def content_checksum(meta: dict) -> str:
     """SHA-256 of what a model file means: its kind, config, stored data (``extra``) and the weights'
     own checksum, as canonical JSON. Stored as ``checksum_sha256``; any edit of the JSON is refused."""
     blob = {k: meta.get(k) for k in ("kind", "config", "extra", "weights_sha256")}
+    if "generation" in meta:  # files written before the section existed keep their checksum
+        blob["generation"] = meta["generation"]
     return hashlib.sha256(json.dumps(blob, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
@@ -131,11 +136,12 @@ def save_model(
     name: str = "model",
     overwrite: bool = True,
     weights_dtype: torch.dtype | None = None,
+    generation: GenerationConfig | None = None,
 ) -> Path:
     """Write ``model``'s weights and ``{kind, config, extra, version}``; returns the JSON path.
 
     ``extra`` holds JSON-safe data stored with the model (normalisation statistics, label names,
-    per-class mean latents, ...). ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
+    per-class mean latents, ...); ``generation``, a gesture model's generation settings. ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
     tensors in that type (they are cast back to the model's type when loaded).
 
     The pair is replaced as one: the new weights go to a hidden pending file first, then the JSON (which
@@ -167,8 +173,10 @@ def save_model(
         "config": to_dict(config),
         "extra": extra or {},
         "weights": weights.name,
-        "weights_sha256": _sha256(pending),
+        "weights_sha256": file_sha256(pending),
     }
+    if generation is not None:
+        meta["generation"] = to_dict(generation)
     meta["checksum_sha256"] = content_checksum(meta)
     _atomic_write(meta_path, lambda tmp: tmp.write_text(json.dumps(meta, indent=1)))
     _commit_pending(pending, weights)
@@ -216,10 +224,10 @@ def _weights_file(weights: Path, want: str) -> Path:
     """The weights that match the JSON: in place, or left pending by a save interrupted after its JSON
     was written (then moved into place when the folder is writable)."""
     try:
-        if weights.exists() and _sha256(weights) == want:
+        if weights.exists() and file_sha256(weights) == want:
             return weights
         pending = pending_weights(weights)
-        if pending.is_file() and _sha256(pending) == want:
+        if pending.is_file() and file_sha256(pending) == want:
             try:
                 _commit_pending(pending, weights)
                 return weights
@@ -246,7 +254,7 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
     meta = read_meta(path, kind, name)
     weights = _weights_file(weights, meta["weights_sha256"])
     try:
-        config = from_dict(_KINDS[kind].config_cls, meta["config"])
+        config, generation = _stored_configs(kind, meta)
         with _random_initialisation_skipped():
             model = _KINDS[kind].build(config)
     except ConfigError as e:
@@ -264,7 +272,18 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         model.to(device).eval()
     except torch.cuda.OutOfMemoryError:
         raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
-    return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path)
+    return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path, generation)
+
+
+def _stored_configs(kind: str, meta: dict) -> tuple[Any, GenerationConfig | None]:
+    """The architecture config of a model file and, for a gesture model, its generation settings: the
+    ``generation`` section, or for files saved before it existed, the settings their config held."""
+    if kind != "gesture":
+        return from_dict(_KINDS[kind].config_cls, meta["config"]), None
+    config, legacy = split_legacy_settings(meta["config"])
+    if not isinstance(meta.get("generation", {}), dict):
+        raise ConfigError("'generation' is not a mapping")
+    return from_dict(_KINDS[kind].config_cls, config), from_dict(GenerationConfig, {**legacy, **meta.get("generation", {})})
 
 
 #: ``torch.nn.init``'s random fills, skipped while a model is built only to be loaded.
@@ -403,62 +422,3 @@ def split_use(split: str, models: dict[str, LoadedModel]) -> dict:
                   if s == split}
     return {"split": split, "trained_on": {name: trained_splits(m) for name, m in models.items()},
             "calibrated_on_it": sorted(calibrated), "held_out": not calibrated}
-
-
-CHECKSUMS = "SHA256SUMS"
-
-
-def write_checksums(folder: str | PathLike[str]) -> Path:
-    """Write ``SHA256SUMS`` (``sha256sum`` format) over every other file of ``folder``."""
-    folder = Path(folder)
-    lines = [f"{_sha256(p)}  {p.name}" for p in sorted(folder.iterdir()) if p.is_file() and p.name != CHECKSUMS
-             and not p.name.startswith(".")]
-    return write_text_atomic(folder / CHECKSUMS, "\n".join(lines) + "\n")
-
-
-def verify_checksums(folder: str | PathLike[str]) -> list[str]:
-    """Check every file listed in ``folder/SHA256SUMS``; returns the names checked, raises on a mismatch."""
-    folder = Path(folder)
-    sums = folder / CHECKSUMS
-    if not sums.is_file():
-        raise InputFileError(sums, "checksum list not found")
-    names = []
-    for line in sums.read_text().splitlines():
-        if not line.strip():
-            continue
-        digest, name = line.split(maxsplit=1)
-        path = folder / name.strip()
-        if not path.is_file():
-            raise InputFileError(path, f"listed in {CHECKSUMS} but missing")
-        if _sha256(path) != digest:
-            raise InputFileError(path, f"checksum differs from {CHECKSUMS} (the file was changed or damaged)")
-        names.append(name.strip())
-    return names
-
-
-def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], extractor: str | PathLike[str] | None,
-                  out: str | PathLike[str], overwrite: bool = False,
-                  weights_dtype: torch.dtype | None = torch.float16, generation: list[str] = ()) -> Path:
-    """Copy a speech model, the gesture model trained on it and (optionally) an extractor into one folder
-    as ``speech.*``, ``gesture.*``, ``extractor.*`` with ``weights_dtype`` weights; the gesture model then
-    names its speech model by the relative path ``speech.json``. ``generation``: ``key=value`` changes
-    of the gesture model's generation settings (:meth:`GestureModelConfig.with_generation_settings`).
-    Writes ``SHA256SUMS``; returns ``out``."""
-    out = Path(out)
-    if out.exists() and any(out.iterdir()) and not overwrite:
-        raise OutputExistsError(out)
-    out.mkdir(parents=True, exist_ok=True)
-    s = load_model(speech, "speech")
-    g = load_model(gesture, "gesture")
-    if g.extra.get("speech_weights_sha256") != s.meta["weights_sha256"]:
-        raise InputFileError(s.path, f"is not the speech model {g.path} was trained with")
-    g_config = g.config.with_generation_settings(list(generation)) if generation else g.config
-    save_model(out, "speech", s.model, s.config, s.extra, name="speech", weights_dtype=weights_dtype)
-    speech_sha = read_meta(out, "speech", "speech")["weights_sha256"]
-    extra = {**g.extra, "speech_model": "speech.json", "speech_weights_sha256": speech_sha}
-    save_model(out, "gesture", g.model, g_config, extra, name="gesture", weights_dtype=weights_dtype)
-    if extractor is not None:
-        x = load_model(extractor, "extractor")
-        save_model(out, "extractor", x.model, x.config, x.extra, name="extractor", weights_dtype=weights_dtype)
-    write_checksums(out)
-    return out

@@ -5,6 +5,12 @@ products are native — a GPU that supports bf16, or a CPU with ``avx512_bf16`` 
 elsewhere (a CPU without them emulates bf16, slower than float32). ``fp32`` keeps the exact path.
 Under bf16 the matrix products of the audio encoders, the denoiser and the motion decoder run in
 bf16; their outputs are returned in float32. The drift this causes is measured by ``bench/``.
+
+CPU speed-ups beyond plain torch (oneDNN's packed bf16 Linear weights and fused Linear + GELU, through
+torch's private ``torch.ops.mkldnn`` ops; a blocked bf16 attention, :func:`emogesture.models.vit.attention`)
+are all switched by :func:`acceleration_enabled`: off with ``EMOGESTURE_ACCELERATION=0`` in the
+environment (or :func:`set_acceleration`), and off by themselves where this torch lacks the private ops
+(:func:`private_ops_available`). Plain torch then runs the same arithmetic, within bf16 rounding.
 """
 
 from __future__ import annotations
@@ -97,6 +103,38 @@ def resolve_precision(precision: str | None, device: str | torch.device) -> str:
     return precision
 
 
+#: The environment variable that switches the CPU speed-ups off (``0``, ``off``, ``false`` or ``no``).
+ACCELERATION_ENV = "EMOGESTURE_ACCELERATION"
+_acceleration: bool | None = None  # set_acceleration's choice; None: the environment decides
+#: the private oneDNN ops the speed-ups call (not part of torch's public API; other builds may lack them)
+PRIVATE_OPS = ("_linear_pointwise", "_reorder_linear_weight", "_is_mkldnn_bf16_supported")
+
+
+def set_acceleration(enabled: bool | None) -> None:
+    """Switch the CPU speed-ups on or off for this process (None: as ``EMOGESTURE_ACCELERATION`` says).
+    Weights already packed (:func:`hold_bf16_weights`) stay packed; load the model again."""
+    global _acceleration
+    _acceleration = enabled
+
+
+def acceleration_enabled() -> bool:
+    """Whether the CPU speed-ups may run: :func:`set_acceleration`'s choice, else the environment's
+    (on unless ``EMOGESTURE_ACCELERATION`` is ``0``, ``off``, ``false`` or ``no``)."""
+    if _acceleration is not None:
+        return _acceleration
+    return os.environ.get(ACCELERATION_ENV, "1").strip().lower() not in ("0", "off", "false", "no")
+
+
+def private_ops_available() -> bool:
+    """Whether this torch has every oneDNN op of :data:`PRIVATE_OPS` (looked up each time: cheap)."""
+    for name in PRIVATE_OPS:
+        try:
+            getattr(torch.ops.mkldnn, name)
+        except (AttributeError, RuntimeError):
+            return False
+    return True
+
+
 @lru_cache(maxsize=1)
 def amx_bf16() -> bool:
     """True on a CPU with AMX bf16 tiles (Intel Xeon from Sapphire Rapids on): its bf16 products ran
@@ -110,8 +148,13 @@ def packs_bf16_weights(device: str | torch.device) -> bool:
     return torch.device(device).type == "cpu" and _onednn_bf16()
 
 
-@lru_cache(maxsize=1)
 def _onednn_bf16() -> bool:
+    """Whether the oneDNN bf16 speed-ups run: switched on, the private ops present, a CPU with native bf16."""
+    return acceleration_enabled() and private_ops_available() and _onednn_bf16_native()
+
+
+@lru_cache(maxsize=1)
+def _onednn_bf16_native() -> bool:
     return native_bf16("cpu") and torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported()
 
 
@@ -127,7 +170,10 @@ def linear_gelu(layer: nn.Linear, x: torch.Tensor, approximate: str = "none") ->
         weight = layer.weight
     if weight is None or torch.is_grad_enabled() or x.device.type != "cpu" or not _onednn_bf16():
         return None
-    return _onednn_linear(x, weight, layer.bias, "gelu", approximate)
+    try:
+        return _onednn_linear(x, weight, layer.bias, "gelu", approximate)
+    except RuntimeError:  # a private op that changed its signature: the caller runs the two steps
+        return None
 
 
 def _onednn_linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | None, post_op: str = "none",
@@ -139,9 +185,12 @@ def _onednn_linear(x: torch.Tensor, weight: torch.Tensor, bias: torch.Tensor | N
 def _packed_linear(layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
     """``layer(x)`` in bf16 through oneDNN with the weight :func:`bf16_weights` packed once (``x [..., in]
     -> [..., out]``); with autograd or off the CPU, the plain product of the layer's bf16 weight."""
-    if x.device.type != "cpu" or (torch.is_grad_enabled() and x.requires_grad):
+    if x.device.type != "cpu" or (torch.is_grad_enabled() and x.requires_grad) or not _onednn_bf16():
         return F.linear(x, layer.weight, layer.bias)
-    return _onednn_linear(x, layer.packed_weight, layer.bias)
+    try:
+        return _onednn_linear(x, layer.packed_weight, layer.bias)
+    except RuntimeError:  # a private op that changed its signature: the plain product of the bf16 weight
+        return F.linear(x.to(layer.weight.dtype), layer.weight, layer.bias)
 
 
 @contextmanager

@@ -143,6 +143,7 @@ def run_evaluate_real(args: argparse.Namespace) -> int:
 def run_motion_stats(args: argparse.Namespace) -> int:
     import json
 
+    from emogesture.errors import EmogestureError
     from emogesture.eval.motion_stats import file_statistics, motion_stats_markdown, npz_files
     from emogesture.fileio import atomic_output, check_output
 
@@ -179,7 +180,8 @@ def run_model_info_bundled(args: argparse.Namespace) -> int:
     import json
 
     from emogesture.assets import BUNDLED_MODEL
-    from emogesture.checkpoints import load_model, verify_checksums
+    from emogesture.bundle import verify_checksums
+    from emogesture.checkpoints import load_model
 
     names = verify_checksums(BUNDLED_MODEL)
     print(f"bundled model: {BUNDLED_MODEL}")
@@ -225,6 +227,7 @@ def run_model_info_speech(args: argparse.Namespace) -> int:
 def run_model_info_gesture(args: argparse.Namespace) -> int:
     import torch
 
+    from emogesture.models.generation import GenerationConfig
     from emogesture.models.gesture import GestureModel, GestureModelConfig, gesture_flops
 
     config = GestureModelConfig.preset(args.preset, args.variant)
@@ -240,7 +243,7 @@ def run_model_info_gesture(args: argparse.Namespace) -> int:
     for name, n in counts.items():
         f = flops.get(name)
         print(f"{name:<12}{n:>16,}{(f'{f / 1e9:.3f}' if f is not None else '-'):>12}  {per.get(name, '')}")
-    steps = config.diffusion.num_inference_steps
+    steps = GenerationConfig.preset(args.preset, args.variant).num_inference_steps
     total = flops["decode"] + steps * flops["denoiser"] + flops.get("audio_ae", 0)
     print(f"generating one 10-s window ({steps} DDIM steps + decoding): {total / 1e9:.2f} GFLOPs")
     print("FLOPs counted by torch.utils.flop_counter (a multiply-add is 2 FLOPs).")

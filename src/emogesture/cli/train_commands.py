@@ -82,8 +82,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--set", dest="generation", action="append", default=[], metavar="KEY=VALUE",
                    help="change a generation setting of the gesture model (repeatable; no retraining): "
-                        "vae.timing_guidance, vae.output_smoothing, vae.output_lowpass_hz, "
-                        "diffusion.num_inference_steps, diffusion.residual_scale")
+                        "num_inference_steps, residual_scale, timing_guidance, output_smoothing, "
+                        "output_lowpass_hz, seam_candidates, hop_seconds")
     p.add_argument("--overwrite", action="store_true", help="write into a folder that is not empty")
     p.set_defaults(func=run_bundle)
 
@@ -144,7 +144,7 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
 
 
 def run_bundle(args: argparse.Namespace) -> int:
-    from emogesture.checkpoints import bundle_models
+    from emogesture.bundle import bundle_models
 
     out = bundle_models(args.speech, args.gesture, args.extractor, args.out, args.overwrite,
                         generation=args.generation)

@@ -44,12 +44,7 @@ class DiffusionConfig:
     set_alpha_to_one: bool = False
     steps_offset: int = 1
     timestep_spacing: str = "leading"
-    num_inference_steps: int = 50
     eta: float = 0.0
-    #: Sampling only, not in the paper: scale of the calibrated residual noise added to each DDIM sample
-    #: (:mod:`emogesture.diffusion.residual`; 0 = off, the paper). It acts only on a model that carries
-    #: a calibration (``GestureModel.latent_residual_tril``, written at the end of training).
-    residual_scale: float = 0.0
 
     def __post_init__(self) -> None:
         def choice(name: str, allowed: tuple[str, ...]) -> None:
@@ -64,12 +59,8 @@ class DiffusionConfig:
             raise ConfigError("diffusion: num_train_timesteps must be ≥ 1")
         if not 0.0 < self.beta_start < self.beta_end < 1.0:
             raise ConfigError(f"diffusion: need 0 < beta_start < beta_end < 1, got {self.beta_start}, {self.beta_end}")
-        if not 1 <= self.num_inference_steps <= self.num_train_timesteps:
-            raise ConfigError(
-                f"diffusion: num_inference_steps must be in 1..{self.num_train_timesteps}, got {self.num_inference_steps}"
-            )
-        if self.steps_offset < 0 or self.eta < 0 or self.clip_sample_range <= 0 or self.residual_scale < 0:
-            raise ConfigError("diffusion: steps_offset, eta and residual_scale must be ≥ 0, clip_sample_range > 0")
+        if self.steps_offset < 0 or self.eta < 0 or self.clip_sample_range <= 0:
+            raise ConfigError("diffusion: steps_offset and eta must be ≥ 0, clip_sample_range > 0")
 
 
 def _common(cfg: DiffusionConfig) -> dict[str, Any]:
@@ -107,9 +98,11 @@ def make_ddpm_scheduler(cfg: DiffusionConfig | None = None) -> Any:
     return _import_diffusers().DDPMScheduler(variance_type=cfg.variance_type, **_common(cfg))
 
 
-def make_ddim_scheduler(cfg: DiffusionConfig | None = None, backend: str = "emogesture") -> Any:
-    """A DDIM scheduler for sampling from ``cfg``, with its timesteps already set to
-    ``cfg.num_inference_steps`` (call ``set_timesteps`` again to change the count).
+def make_ddim_scheduler(cfg: DiffusionConfig | None = None, num_inference_steps: int = 50,
+                        backend: str = "emogesture") -> Any:
+    """A DDIM scheduler for sampling from ``cfg``, with its timesteps already set to ``num_inference_steps``
+    (call ``set_timesteps`` again to change the count; a count outside ``1..num_train_timesteps`` is a
+    ``ConfigError``).
 
     ``backend``: ``emogesture`` (default) is :class:`emogesture.diffusion.ddim.DDIMSampler`, the same
     arithmetic as diffusers' without its import cost; ``diffusers`` is ``diffusers.DDIMScheduler``."""
@@ -122,5 +115,7 @@ def make_ddim_scheduler(cfg: DiffusionConfig | None = None, backend: str = "emog
         scheduler = _import_diffusers().DDIMScheduler(set_alpha_to_one=cfg.set_alpha_to_one, **_common(cfg))
     else:
         raise ConfigError(f"DDIM backend must be emogesture or diffusers, got {backend!r}")
-    scheduler.set_timesteps(cfg.num_inference_steps)
+    if not 1 <= num_inference_steps <= cfg.num_train_timesteps:
+        raise ConfigError(f"DDIM: num_inference_steps must be in 1..{cfg.num_train_timesteps}, got {num_inference_steps}")
+    scheduler.set_timesteps(num_inference_steps)
     return scheduler

@@ -26,7 +26,7 @@ import numpy as np
 
 from emogesture.audio import TARGET_SAMPLE_RATE
 from emogesture.data.beat import EMOTIONS
-from emogesture.eval.gesture_models import sequence_joints
+from emogesture.eval.seams import sequence_joints
 from emogesture.eval.motion_stats import motion_statistics
 from emogesture.pipeline.generate import GesturePipeline
 

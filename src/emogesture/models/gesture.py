@@ -17,17 +17,12 @@ from dataclasses import dataclass, field
 import torch
 from torch import nn
 
-from emogesture.config import apply_overrides, to_dict
 from emogesture.diffusion.schedulers import DiffusionConfig
 from emogesture.errors import ConfigError
 from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
 from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
 
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
-#: Settings that change how a trained gesture model generates, not what it learned: they can be changed
-#: on a trained model (``emogesture bundle --set``) without retraining.
-GENERATION_SETTINGS = ("vae.timing_guidance", "vae.output_smoothing", "vae.output_lowpass_hz",
-                       "diffusion.num_inference_steps", "diffusion.residual_scale")
 
 
 @dataclass
@@ -59,15 +54,6 @@ class GestureModelConfig:
         if self.vae.latent_dim != self.denoiser.latent_dim:
             raise ConfigError("vae.latent_dim and denoiser.latent_dim must agree")
 
-    def with_generation_settings(self, overrides: list[str]) -> "GestureModelConfig":
-        """A copy with ``key=value`` overrides of :data:`GENERATION_SETTINGS` (e.g. ``vae.timing_guidance=3``)."""
-        for item in overrides:
-            key = item.split("=", 1)[0].strip()
-            if "=" not in item or key not in GENERATION_SETTINGS:
-                raise ConfigError(f"{item!r}: only generation settings can change on a trained model, as "
-                                  f"key=value with key one of {', '.join(GENERATION_SETTINGS)}")
-        return apply_overrides(GestureModelConfig, to_dict(self), overrides)
-
     @property
     def hears_timing(self) -> bool:
         """True when the model reads the speech's timing stream: its denoiser (after its
@@ -82,33 +68,14 @@ class GestureModelConfig:
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
         """``paper``: the paper's design (ε-prediction; docs/design.md, 'Gesture generation model').
-        ``tiny``: the small VAE and denoiser, and the denoiser predicts ẑ0
-        (``diffusion.prediction_type="sample"``) instead of ε.
-
-        Why ẑ0 for tiny (measured with the 900-step tiny VAE, a denoiser trained alone on its latents
-        for 1000 steps, generated emotion accuracy GA on held-out texts, GT 0.935): ε-prediction
-        reaches a noise loss of 0.12, yet its samples lie far from the latents (squared error to the
-        window's latent 12 per dimension, where the latents' variance is 0.4; GA 0.07), because at
-        t ≈ 1000 an ε error is multiplied by sqrt((1 − ᾱ_t) / ᾱ_t) ≈ 15 in the implied ẑ0; clipping
-        ẑ0 to [-1, 1] (the authors' released inference) keeps the samples on scale but GA stays at
-        chance. v-prediction gives GA 0.62 and ẑ0-prediction 0.73.
-
-        A ẑ0 denoiser regresses to the conditional mean, so ``tiny`` also adds the calibrated residual
-        noise, at half its calibrated scale (``diffusion.residual_scale = 0.5``, chosen on val with the
-        timing guidance; see :mod:`emogesture.diffusion.residual`).
-
-        ``tiny`` samples with 10 DDIM steps (the paper: 50; sampling is generation's largest stage): a ẑ0
-        denoiser's samples hardly change with the step count (val, 4 seeds, the bundled model: GA 0.718 ± 0.033 with 10 steps,
-        0.707 ± 0.044 with 25, 0.707 ± 0.038 with 50; FGD 7.41 / 7.44 / 7.47; rhythm gain, speed, jerk and
-        the seam checks alike), and its training samples with 10 already (``align_ddim_steps``).
-
-        ``tiny``'s motion decoder also hears the speech's timing stream (not in the paper),
-        for the variants that hear speech through a decoder (``joint``, ``disjoint``): see
-        :meth:`MotionVAEConfig.preset`. ``paper`` is the paper's design.
+        ``tiny``: the small VAE and denoiser; the denoiser predicts ẑ0 (``diffusion.prediction_type =
+        "sample"``) instead of ε, and the motion decoder of the variants that hear speech through one
+        (``joint``, ``disjoint``) also reads the speech's timing stream (:meth:`MotionVAEConfig.preset`).
+        How either generates is :meth:`emogesture.models.generation.GenerationConfig.preset`'s; the
+        reasons and measurements: ``experiments/README.md``, "Motion prior".
         """
         n = 1 if variant == "no_audio" else 3
-        diffusion = (DiffusionConfig(prediction_type="sample", residual_scale=0.5, num_inference_steps=10)
-                     if name == "tiny" else DiffusionConfig())
+        diffusion = DiffusionConfig(prediction_type="sample") if name == "tiny" else DiffusionConfig()
         timing = name == "tiny" and variant in ("joint", "disjoint")
         return cls(variant=variant, vae=MotionVAEConfig.preset(name, timing=timing),
                    denoiser=DenoiserConfig.preset(name, n), diffusion=diffusion)

@@ -15,63 +15,47 @@ With one memory token the cross-attention softmax is identically 1, so each cros
 
 Windows may be shorter than ``frames`` (the maximum; the positional tables are sized to it).
 
-``frames_per_token = k > 1`` (not in MLD; default 1) makes every transformer token ``k`` consecutive
-frames: the encoder input Linear reads ``k × 282`` numbers and the decoder output Linear writes them,
-so attention runs over ``frames / k`` tokens (a window shorter than a multiple of ``k`` is padded with
-its last frame and the output cropped). Measured once on the synthetic corpus (prior-only training,
-batch 32): after 300 steps the training reconstruction loss was 0.146 with ``k = 10`` against 0.109
-with ``k = 1``, and the ``k = 10`` prior's held-out joint error was still 0.997 of the mean pose's:
-grouping alone does not make the tiny prior learn faster.
+Options beside MLD's design (each off in the ``paper`` preset; measurements behind them:
+``experiments/README.md``, "Motion prior"):
 
-Two further options (not in MLD; off in the ``paper`` preset) make a small prior learn on a CPU:
-
+* ``frames_per_token = k > 1``: every transformer token is ``k`` consecutive frames (the encoder's input
+  Linear reads ``k × 282`` numbers, the decoder's output Linear writes them; a window shorter than a
+  multiple of ``k`` is padded with its last frame and the output cropped). Set by no preset.
 * ``latent_tokens = L > 1``: z is L parts of ``latent_dim / L`` numbers. The encoder has 2L
   distribution tokens (L for μ, then L for log σ²); the decoder's memory is the L parts, each projected to
   the width and tagged with a learnable memory embedding, so frames can attend to different parts. z stays
-  one vector ``[B, latent_dim]`` outside the VAE (the denoiser is unchanged).
-* ``low_frequency_path = F > 0``: a linear path beside the transformers. The encoder adds
+  one vector ``[B, latent_dim]`` outside the VAE (the denoiser is unchanged). Set by no preset.
+* ``low_frequency_path = F > 0`` (tiny): a linear path beside the transformers. The encoder adds
   ``Linear(DCT_F(frame embeddings))`` to μ, where ``DCT_F`` takes the first F DCT-II coefficients over
   time (coefficient 0 is the time mean); the decoder adds ``Σ_f cos_f(t) · Linear(z)_f`` to every frame.
   The transformers then only model what is left: the gesture strokes. The path's output Linear starts
   at zero (random cosines would only add noise).
-* ``detail_path = F'`` with ``detail_columns``: the same kind of path for a few feature columns only,
-  reading their own features (not the frame embeddings) and writing only them, so that those columns
-  get more cosines than the rest (used for the wrists' turns, which the timing stream cannot place,
-  while the arms' strokes stay with the stream). Output Linear at zero, as above.
-
-``timing_features = F > 0`` (not in MLD, off in both presets): the decoder also reads the
-speech's timing stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, T, F]``): every query
-token gets ``Linear(the stream of the frames it covers)`` added, so each frame knows when the speech
-around it moves without that passing through z. The Linear starts at zero (the prior begins as MLD's).
-
-Measured on the default synthetic corpus (prior-only training: smooth L1 on features + on joint
-positions + 1e-4 KL, batch 32, 1 thread; held-out joint error as a fraction of the mean pose's):
-
-* a linear DCT fit bounds what the path can give: the window's own mean pose scores 0.29, the first
-  4 / 8 / 12 cosines 0.21 / 0.16 / 0.12 (0.13 after compressing their coefficients to 256 numbers by
-  PCA), a 1-s Gaussian smoothing of the true motion 0.19;
-* transformer only (F = 0; L = 1 or 8): 0.67 at step 100, 0.63 at step 200 (lr 3e-4); init and
-  positional-table variants (log σ² bias −6, sinusoidal tables, fan-in init, queries from z) did no
-  better;
-* F = 1: 0.48 / 0.38 / 0.35 at steps 100 / 200 / 300 (lr 3e-4);
-* F = 12, lr 1e-3: 0.49 / 0.44 / 0.42 with the joint term in metres, 0.41 / 0.33 / 0.28 with it in
-  centimetres (the trainer's ``joint_scale``; smooth L1 in metres is nearly zero for cm errors).
+* ``detail_path = F'`` with ``detail_columns`` (tiny, with the timing stream): the same kind of path for
+  a few feature columns only, reading their own features (not the frame embeddings) and writing only
+  them, so that those columns get more cosines than the rest (the wrists' turns, which the timing stream
+  cannot place). Output Linear at zero, as above.
+* ``timing_features = F > 0`` (tiny, for the variants that hear speech): the decoder also reads the
+  speech's timing stream (:func:`emogesture.audio.timing.timing_stream`, ``[B, T, F]``), smoothed over
+  ``timing_smoothing`` frames: every query token gets ``Linear(the stream of the frames it covers)``
+  added, so each frame knows when the speech around it moves without that passing through z. The Linear
+  starts at zero (the prior begins as MLD's). :meth:`MotionVAE.decode_pair` decodes with and without the
+  stream, for timing guidance at generation (:class:`~emogesture.models.generation.GenerationConfig`).
+* ``decoder_smoothing = σ > 0``: a Gaussian smoothing over time ends the decoder, in training and
+  generation alike. Set by no preset.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import torch
-import torch.nn.functional as F
 from torch import nn
 
 from emogesture.errors import ConfigError
 from emogesture.models.skip_transformer import SkipTransformer, SkipTransformerConfig
 from emogesture.motion.features import MotionFeatureSpec
+from emogesture.motion.filters import gaussian_smooth
 from emogesture.motion.skeleton import WRIST_JOINTS
-from emogesture.types import FPS
 
 
 @dataclass
@@ -99,18 +83,6 @@ class MotionVAEConfig:
     #: σ, in frames, of a Gaussian smoothing of the timing stream before the decoder reads it (0 = none):
     #: the fbank's frame-to-frame onset strength is jittery, and read raw it comes out as jitter.
     timing_smoothing: float = 0.0
-    #: Generation only (training reconstructs with ``w = 1``): the decoder's output is
-    #: ``D(z, zeros) + w · (D(z, stream) − D(z, zeros))``, the timing stream's part scaled by ``w``
-    #: (guidance on the stream, as classifier-free guidance does on a condition), with ``w`` lowered
-    #: where a joint's 6D column would turn round (:func:`emogesture.motion.guide_features`).
-    timing_guidance: float = 1.0
-    #: Generation only: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
-    output_smoothing: float = 0.0
-    #: Generation only: cutoff, in Hz at the motion's 30 fps, of a zero-phase low-pass over the decoded
-    #: features (:func:`lowpass`; 0 = none; after ``output_smoothing`` when both are set). Sharper than the
-    #: Gaussian: it removes the decoder's jitter above the cutoff and keeps the strokes below it at full
-    #: speed, where a Gaussian that removes the jitter also halves 3-Hz motion.
-    output_lowpass_hz: float = 0.0
     #: σ, in frames, of a Gaussian smoothing that ends the decoder, in training and generation alike
     #: (0 = none): a decoder trained through it cannot output frame-to-frame jitter, and learns strokes
     #: that keep their speed after it (``output_smoothing`` at generation only costs that speed).
@@ -134,15 +106,9 @@ class MotionVAEConfig:
         if self.latent_dim % self.latent_tokens:
             raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
                               f"latent_dim {self.latent_dim}")
-        if min(self.timing_features, self.timing_smoothing, self.timing_guidance, self.output_smoothing,
-               self.decoder_smoothing) < 0:
-            raise ConfigError(f"motion VAE: timing_features, timing_smoothing, timing_guidance, output_smoothing "
-                              f"and decoder_smoothing must be ≥ 0, got {self.timing_features}, "
-                              f"{self.timing_smoothing}, {self.timing_guidance}, {self.output_smoothing}, "
-                              f"{self.decoder_smoothing}")
-        if not 0 <= self.output_lowpass_hz < FPS / 2:
-            raise ConfigError(f"motion VAE: output_lowpass_hz must be 0 (off) or below {FPS / 2:g} Hz (half the "
-                              f"{FPS} fps), got {self.output_lowpass_hz}")
+        if min(self.timing_features, self.timing_smoothing, self.decoder_smoothing) < 0:
+            raise ConfigError(f"motion VAE: timing_features, timing_smoothing and decoder_smoothing must be ≥ 0, "
+                              f"got {self.timing_features}, {self.timing_smoothing}, {self.decoder_smoothing}")
         if self.frames % self.frames_per_token:
             raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
@@ -154,82 +120,27 @@ class MotionVAEConfig:
     def preset(cls, name: str, feature_dim: int = 282, frames: int = 300, timing: bool = False) -> "MotionVAEConfig":
         """``paper``: width 256, 9 layers, 4 heads, ff 1024, dropout 0.1 (≈17.9 M parameters).
 
-        ``tiny``: width 64, 3 layers (1 + 1 + 1), 4 heads, ff 256, no dropout, and a low-frequency path
-        of 48 cosines (≈4.76 M parameters, 4.27 M of them in the path's two Linears), for CPU work.
-        48 cosines reach 2.4 Hz over a 10-s window, so the path also carries the gesture strokes: in
-        prior-only training (300 steps) the reconstructed wrists moved at 0.85 of the true speed with
-        48 cosines and at 0.34 with 12, at the same held-out position error (0.29 vs 0.28 of the mean
-        pose's) and the same time per step.
-        Without dropout, attention runs in torch's fused CPU kernel instead of materialising and masking
-        every 300×300 attention matrix: a joint training step is about twice as fast.
+        ``tiny``: width 64, 3 layers (1 + 1 + 1), 4 heads, ff 256, no dropout (attention then runs in
+        torch's fused CPU kernel), and a low-frequency path of 48 cosines (2.4 Hz over a 10-s window, so
+        the path also carries the strokes; ≈4.76 M parameters, 4.27 M of them in the path's Linears).
 
-        ``tiny`` with ``timing=True`` (the gesture model's default, for the variants that hear
-        speech): 16 cosines only (0.75 Hz over 10 s), so the latent carries posture and slow motion
-        but not the strokes, and the decoder reads the speech's timing stream (smoothed, σ 2 frames)
-        to place them; at generation the stream's part is scaled by 5 (``timing_guidance``) and the
-        output low-passed at 4 Hz (``output_lowpass_hz``), chosen on the val split for the bundled model
-        (corpus version 5, 2400 steps; ``experiments/reports/bundled_model/generation_sweep_val.md``: the
-        highest GA among the settings whose rhythm gain is at least 0.06 with the wrist speed and jerk
-        within 20 % of the ground truth's). Earlier models of corpus version 3 used guidance 3.5 at 3 Hz
-        (``experiments/README.md``, "Rhythm").
-
-        With the timing stream, the wrists' 12 feature columns (in the default 282-number layout) also
-        get a path of their own, 24 cosines (1.15 Hz; ``detail_path``, ``detail_columns``): the
-        corpus turns each stroke's wrist in its own direction, which the stream cannot say, and with 16
-        cosines for everything the generated wrists turned at 0.0090 / 0.0100 rad/frame against the
-        ground truth's 0.0156 / 0.0197 (val). With the path, 0.028 / 0.036, inside the range of real
-        motion capture, at the same rhythm gain (0.134 against 0.135) and GA, FGD 8.7 against 7.4 (val,
-        4 seeds; 16 cosines gave 0.011 / 0.014, 56 gave 0.044 / 0.062 at FGD 14).
+        ``tiny`` with ``timing=True`` (the gesture model's, for the variants that hear speech): 16 cosines
+        only (0.75 Hz over 10 s), so the latent carries posture and slow motion and the decoder places the
+        strokes from the speech's timing stream (2 numbers a frame, smoothed over 2 frames); the wrists'
+        12 feature columns (in the default 282-number layout) get a path of their own of 24 cosines
+        (1.15 Hz), for the direction each stroke turns a wrist, which the stream cannot say. The reasons
+        and measurements: ``experiments/README.md``, "Motion prior".
         """
         if name == "paper":
             return cls(feature_dim=feature_dim, frames=frames)
         if name == "tiny":
             spec = MotionFeatureSpec()  # the wrists' columns, in the default feature layout
             wrists = tuple(spec.columns(WRIST_JOINTS)) if feature_dim == spec.dim else ()
-            hears = dict(timing_features=2, timing_smoothing=2.0, timing_guidance=5.0, output_lowpass_hz=4.0,
+            hears = dict(timing_features=2, timing_smoothing=2.0,
                          detail_path=min(24, frames) if wrists else 0, detail_columns=wrists)
             return cls(feature_dim=feature_dim, frames=frames, width=64, layers=3, heads=4, ff_dim=256, dropout=0.0,
                        low_frequency_path=min(16 if timing else 48, frames), **(hears if timing else {}))
         raise ConfigError(f"unknown motion VAE preset {name!r}; known: paper, tiny")
-
-
-def gaussian_smooth(x: torch.Tensor, sigma: float) -> torch.Tensor:
-    """``x [B, T, F]`` smoothed along T by a Gaussian of ``sigma`` frames (truncated at 3σ; the edges
-    repeat the first and last frame)."""
-    r = max(1, int(3 * sigma + 0.5))
-    offsets = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
-    return _filter_over_time(x, torch.exp(-0.5 * (offsets / sigma) ** 2), odd_edges=False)
-
-
-def lowpass(x: torch.Tensor, cutoff_hz: float, fps: float = FPS) -> torch.Tensor:
-    """``x [B, T, F]`` low-passed along T at ``cutoff_hz``: zero phase, by a Hann-windowed sinc kernel
-    reaching 3 cutoff periods each side (shortened to ``T - 1`` frames for short windows), unit gain at 0 Hz.
-
-    The edges are extended by odd reflection (``2·x[0] − x[k]``), which keeps both the edge value and
-    its slope, so a ramp passes unchanged and a window does not slow down towards its ends.
-    """
-    t = x.shape[1]
-    r = min(math.ceil(3 * fps / cutoff_hz), t - 1)
-    if r < 1:
-        return x
-    n = torch.arange(-r, r + 1, device=x.device, dtype=x.dtype)
-    f = cutoff_hz / fps  # cycles per frame
-    return _filter_over_time(x, torch.sinc(2 * f * n) * (0.5 + 0.5 * torch.cos(torch.pi * n / (r + 1))),
-                             odd_edges=True)
-
-
-def _filter_over_time(x: torch.Tensor, kernel: torch.Tensor, odd_edges: bool) -> torch.Tensor:
-    """``x [B, T, F]`` convolved along T with ``kernel [2r + 1]`` (normalised to unit sum), each feature
-    alone; the edges extended by ``r`` frames, repeating the end frames or, with ``odd_edges``, by odd
-    reflection (``2·x[0] − x[k]``)."""
-    r = (len(kernel) - 1) // 2
-    y = x.transpose(1, 2)
-    if odd_edges:
-        y = torch.cat([2 * y[..., :1] - y[..., 1:r + 1].flip(-1), y, 2 * y[..., -1:] - y[..., -r - 1:-1].flip(-1)], -1)
-    else:
-        y = F.pad(y, (r, r), mode="replicate")
-    kernel = (kernel / kernel.sum()).expand(x.shape[2], 1, -1)
-    return F.conv1d(y, kernel, groups=x.shape[2]).transpose(1, 2)
 
 
 def kl_loss(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:

@@ -21,7 +21,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from emogesture.errors import ConfigError
-from emogesture.runtime import amx_bf16, linear_gelu
+from emogesture.runtime import acceleration_enabled, amx_bf16, linear_gelu
 
 LN_EPS = 1e-6
 #: :func:`attention`'s blocked path computes at most about this many scores at a time (12 heads x 128
@@ -55,7 +55,8 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
     windows: 21 against 43 ms a layer; the tiny decoder's: 5.3 against 8 ms), and everything else
     goes to :func:`torch.nn.functional.scaled_dot_product_attention` too. Under autograd, CPU bf16
     inputs of shapes below :data:`FLOAT32_TRAINING_ATTENTION` are attended in float32 (the result is
-    returned in bf16), larger ones by torch's bf16 kernel.
+    returned in bf16), larger ones by torch's bf16 kernel. With the speed-ups switched off
+    (:func:`~emogesture.runtime.acceleration_enabled`), always torch's kernel.
     """
     cpu_bf16 = q.device.type == "cpu" and q.dtype == torch.bfloat16
     training = torch.is_grad_enabled() and (q.requires_grad or k.requires_grad or v.requires_grad)
@@ -64,7 +65,7 @@ def attention(q: torch.Tensor, k: torch.Tensor, v: torch.Tensor, dropout_p: floa
         with torch.autocast("cpu", enabled=False):
             return F.scaled_dot_product_attention(q.float(), k.float(), v.float(), dropout_p=dropout_p).to(q.dtype)
     blocked = (cpu_bf16 and not training and dropout_p == 0.0 and q.shape[-2] >= BLOCKED_ATTENTION_MIN_TOKENS
-               and not amx_bf16())
+               and not amx_bf16() and acceleration_enabled())
     if not blocked:
         return F.scaled_dot_product_attention(q, k, v, dropout_p=dropout_p)
     *batch, n, e = q.shape

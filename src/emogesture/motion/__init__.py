@@ -1,7 +1,7 @@
 """Motion representation: rotations, the SMPL-X skeleton, model features, bodies and npz files (docs/design.md,
 'Motion representation')."""
 
-from emogesture.motion.body import SkeletonBody, SMPLXBody, load_body
+from emogesture.motion.body import SkeletonBody
 from emogesture.motion.features import (
     GUIDANCE_FLOOR,
     FeatureStats,
@@ -46,7 +46,6 @@ __all__ = [
     "FeatureStats",
     "MotionFeatureSpec",
     "OutputExistsError",
-    "SMPLXBody",
     "SkeletonBody",
     "axis_angle_to_matrix",
     "axis_angle_to_rot6d",
@@ -56,7 +55,6 @@ __all__ = [
     "features_to_poses",
     "guide_features",
     "interpolate_rotations",
-    "load_body",
     "load_smplx_npz",
     "matrix_to_axis_angle",
     "matrix_to_euler_zyx",

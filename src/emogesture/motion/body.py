@@ -1,20 +1,13 @@
-"""Bodies that turn SMPL-X poses into joint positions (and, with SMPL-X files, vertices).
-
-``SkeletonBody`` is a licence-free differentiable forward-kinematics layer over the mannequin-x
-rest skeleton; ``SMPLXBody`` wraps the user's own SMPL-X model files through the optional
-``smplx`` package. ``load_body`` picks one.
-"""
+"""The body that turns SMPL-X poses into joint positions: ``SkeletonBody``, a licence-free differentiable
+forward-kinematics layer over the mannequin-x rest skeleton (no SMPL-X model files are needed or read)."""
 
 from __future__ import annotations
 
 from functools import lru_cache
-from os import PathLike
-from pathlib import Path
 
 import numpy as np
 import torch
 
-from emogesture.errors import EmogestureError, InputFileError
 from emogesture.motion.features import MotionFeatureSpec, split_features
 from emogesture.motion.rotations import axis_angle_to_matrix, rot6d_planes_to_matrix
 from emogesture.motion.skeleton import PARENTS, joint_depths, rest_joints, rest_offsets
@@ -188,104 +181,3 @@ def _compose(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Matrix products ``a @ b`` of planes ``[k, 3, 3, N]``: entry (i, j) = sum over l of a[i, l] b[l, j]."""
     (a0, a1, a2), (b0, b1, b2) = a.unbind(2), b.unbind(1)  # a's columns, b's rows: [k, 3, N]
     return a0[:, :, None] * b0[:, None] + a1[:, :, None] * b1[:, None] + a2[:, :, None] * b2[:, None]
-
-
-def _resolve_model_file(model_path: str | PathLike[str], gender: str) -> Path:
-    path = Path(model_path)
-    if not path.exists():
-        raise InputFileError(path, "SMPL-X model file not found")
-    if path.is_dir():
-        stem = f"SMPLX_{gender.upper()}"
-        for folder in (path, path / "smplx"):
-            for name in (f"{stem}.npz", f"{stem}.pkl", f"{stem}_2020.npz"):
-                if (folder / name).is_file():
-                    return folder / name
-        raise InputFileError(path, f"no {stem}.npz or {stem}.pkl SMPL-X model file in this folder")
-    if path.suffix.lower() not in (".npz", ".pkl"):
-        raise InputFileError(path, "SMPL-X model file must be .npz or .pkl")
-    return path
-
-
-class SMPLXBody(torch.nn.Module):
-    """The user's SMPL-X model (needs ``pip install 'emogesture[smplx]'`` and licensed model files).
-
-    Built with ``use_pca=False`` and ``flat_hand_mean=True`` (BEAT2's convention); as many shape
-    (up to 300) and expression (up to 100) coefficients as the model file holds.
-    """
-
-    def __init__(
-        self, model_path: str | PathLike[str], gender: str = "neutral", betas: np.ndarray | None = None
-    ) -> None:
-        """Args: model_path: a SMPL-X .npz/.pkl file or a folder holding ``SMPLX_<GENDER>.npz``;
-        gender: 'neutral', 'male' or 'female'; betas: shape ``[B]`` (truncated/zero-padded)."""
-        super().__init__()
-        path = _resolve_model_file(model_path, gender)
-        try:
-            import smplx
-        except ImportError as err:
-            raise EmogestureError(
-                "the SMPL-X body needs the 'smplx' package: pip install 'emogesture[smplx]'"
-            ) from err
-        try:
-            self.model = smplx.SMPLX(
-                str(path), gender=gender, ext=path.suffix.lower()[1:], use_pca=False, flat_hand_mean=True,
-                num_betas=300, num_expression_coeffs=100, use_face_contour=False, batch_size=1,
-            )  # fmt: skip
-        except Exception as err:  # smplx raises assorted errors for a bad file
-            raise InputFileError(path, f"cannot load SMPL-X model ({type(err).__name__}: {err})") from err
-        self.num_betas = int(self.model.num_betas)
-        self.num_expressions = int(self.model.num_expression_coeffs)
-        shape = np.zeros(self.num_betas, np.float32)
-        if betas is not None:
-            given = np.asarray(betas, np.float32).reshape(-1)[: self.num_betas]
-            shape[: given.size] = given
-        self.register_buffer("betas", torch.from_numpy(shape), persistent=False)
-
-    def _run(self, poses: torch.Tensor, trans: torch.Tensor | None, expressions: torch.Tensor | None):
-        _check_inputs(poses, trans, (NUM_JOINTS, 3))
-        lead = poses.shape[:-2]
-        p = poses.reshape(-1, NUM_JOINTS, 3).to(self.betas.dtype)
-        n = p.shape[0]
-        expr = p.new_zeros(n, self.num_expressions)
-        if expressions is not None:
-            e = expressions.reshape(n, -1).to(p.dtype)[:, : self.num_expressions]
-            expr[:, : e.shape[1]] = e
-        out = self.model(
-            betas=self.betas[None].expand(n, -1),
-            global_orient=p[:, 0],
-            body_pose=p[:, 1:22].reshape(n, 63),
-            jaw_pose=p[:, 22],
-            leye_pose=p[:, 23],
-            reye_pose=p[:, 24],
-            left_hand_pose=p[:, 25:40].reshape(n, 45),
-            right_hand_pose=p[:, 40:55].reshape(n, 45),
-            expression=expr,
-            transl=None if trans is None else trans.reshape(n, 3).to(p.dtype),
-            return_verts=True,
-        )
-        return lead, out
-
-    def forward(self, poses: torch.Tensor, trans: torch.Tensor | None = None) -> torch.Tensor:
-        """Axis-angle ``poses [B, T, 55, 3]`` (any leading dims), ``trans [B, T, 3]``
-        -> joint positions ``[B, T, 55, 3]`` (SMPL-X's first 55 joints)."""
-        lead, out = self._run(poses, trans, None)
-        return out.joints[:, :NUM_JOINTS].reshape(*lead, NUM_JOINTS, 3)
-
-    def vertices(
-        self, poses: torch.Tensor, trans: torch.Tensor | None = None, expressions: torch.Tensor | None = None
-    ) -> torch.Tensor:
-        """Posed mesh vertices ``[B, T, V, 3]`` for ``poses [B, T, 55, 3]`` (+ ``expressions [B, T, E]``)."""
-        lead, out = self._run(poses, trans, expressions)
-        return out.vertices.reshape(*lead, -1, 3)
-
-
-def load_body(
-    model_path: str | PathLike[str] | None = None, gender: str = "neutral", shape: np.ndarray | None = None
-) -> torch.nn.Module:
-    """``SMPLXBody(model_path)`` when a model path is given, else the licence-free ``SkeletonBody``.
-
-    Both map ``poses [B, T, 55, 3]`` (+ ``trans [B, T, 3]``) to joints ``[B, T, 55, 3]``.
-    """
-    if model_path is not None:
-        return SMPLXBody(model_path, gender=gender, betas=shape)
-    return SkeletonBody(shape)

@@ -21,12 +21,13 @@ from emogesture.checkpoints import LoadedModel
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache
-from emogesture.diffusion.residual import add_residual_noise, residual_factor
+from emogesture.diffusion.residual import residual_factor
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
-from emogesture.models.motion_vae import gaussian_smooth, lowpass
-from emogesture.motion import MotionFeatureSpec, guide_features
+from emogesture.models.generation import GenerationConfig
+from emogesture.motion import MotionFeatureSpec
+from emogesture.pipeline.postprocess import add_residual, filter_output, guide_timing
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.runtime import autocast, bf16_weights, refuse_held_weights
 
@@ -92,19 +93,26 @@ def evaluating(model: nn.Module) -> nn.Module:
     return model.eval() if model.training else model
 
 
+def settings_of(gesture: LoadedModel, generation: GenerationConfig | None) -> GenerationConfig:
+    """``generation``, or the model's own settings (a model saved without any: the defaults)."""
+    return generation or gesture.generation or GenerationConfig()
+
+
 @torch.inference_mode()
 def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int], batch_size: int = 64,
-                   num_inference_steps: int | None = None, residual: bool = True,
+                   generation: GenerationConfig | None = None, residual: bool = True,
                    progress: Callable[[int], None] | None = None,
                    residual_weights: np.ndarray | None = None, precision: str = "fp32") -> torch.Tensor:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> sampled motion latents ``[W, 256]``
-    float32 (on the model's device); see :func:`generate_from_conditions`. ``precision="bf16"`` runs
-    the denoiser under bf16 autocast (the scheduler's arithmetic stays float32)."""
+    float32 (on the model's device), the residual noise added (:func:`~emogesture.pipeline.postprocess.add_residual`);
+    see :func:`generate_from_conditions`. ``precision="bf16"`` runs the denoiser under bf16 autocast (the
+    scheduler's arithmetic stays float32)."""
     model = evaluating(gesture.model)
     device = next(model.parameters()).device
     cfg = gesture.config
-    scheduler = make_ddim_scheduler(cfg.diffusion)
-    steps = num_inference_steps or cfg.diffusion.num_inference_steps
+    settings = settings_of(gesture, generation)
+    steps = settings.num_inference_steps
+    scheduler = make_ddim_scheduler(cfg.diffusion, steps)
     if any(len(c) != len(seeds) for c in conditions):
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
     conditions = conditions[: cfg.denoiser.num_inputs]  # a stream only the decoder reads stays out
@@ -120,11 +128,9 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
                 z = ddim_sample(model.denoiser, scheduler, conds, generators, num_inference_steps=steps,
                                 eta=cfg.diffusion.eta)
             z = z.float()
-            if residual and model.calibrated:  # drawn after the DDIM noise, from the same per-window generators
-                scale = cfg.diffusion.residual_scale
-                if residual_weights is not None:
-                    scale = scale * torch.as_tensor(np.asarray(residual_weights[i : i + batch_size], np.float32))
-                z = add_residual_noise(z, model.latent_residual_tril, generators, scale)
+            if residual:
+                weights = residual_weights[i: i + batch_size] if residual_weights is not None else None
+                z = add_residual(z, model, generators, settings.residual_scale, weights)
             out.append(z)
             if progress is not None:
                 progress(len(z))
@@ -154,19 +160,21 @@ DECODE_BATCH = 16
 
 @torch.inference_mode()
 def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = DECODE_BATCH,
-                   timing: np.ndarray | None = None, precision: str = "fp32", generation: bool = True) -> np.ndarray:
+                   timing: np.ndarray | None = None, precision: str = "fp32",
+                   generation: GenerationConfig | None | bool = None) -> np.ndarray:
     """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
     the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
-    ``precision="bf16"``: the decoder runs under bf16 autocast. ``generation``: apply the decoder's
-    generation settings (``vae.timing_guidance``, ``vae.output_smoothing``, ``vae.output_lowpass_hz``); ``False`` decodes as in
-    training (the prior's reconstruction)."""
+    ``precision="bf16"``: the decoder runs under bf16 autocast. ``generation``: the settings of the steps
+    after decoding (:func:`~emogesture.pipeline.postprocess.guide_timing`,
+    :func:`~emogesture.pipeline.postprocess.filter_output`; None: the model's own); ``False`` decodes as
+    in training (the prior's reconstruction)."""
     model = evaluating(gesture.model)
     vae = gesture.config.vae
     mean, std = _motion_statistics(gesture)
     reads = vae.timing_features > 0
-    guidance = vae.timing_guidance if generation and reads else 1.0
-    smoothing = vae.output_smoothing if generation else 0.0
-    cutoff = vae.output_lowpass_hz if generation else 0.0
+    settings = GenerationConfig() if generation is False else settings_of(gesture, generation or None)
+    guidance = settings.timing_guidance if reads else 1.0
+    smoothing, cutoff = settings.output_smoothing, settings.output_lowpass_hz
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
     if guided:
         spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
@@ -181,34 +189,28 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
                     heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
                 else:
                     x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
-            # to raw units first: the filters below are unit-gain, so they commute with the affine map
-            if guided:
-                x = guide_features(torch.addcmul(m, deaf.float(), s), torch.addcmul(m, heard.float(), s), guidance, spec)
-            else:
-                x = torch.addcmul(m, x.float(), s)
-            if smoothing > 0:
-                x = gaussian_smooth(x, smoothing)
-            if cutoff > 0:
-                x = lowpass(x, cutoff)
-            out[i: i + batch_size] = x.cpu().numpy()
+            # to raw units first: the filters are unit-gain, so they commute with the affine map
+            x = guide_timing(heard, deaf, m, s, guidance, spec) if guided else torch.addcmul(m, x.float(), s)
+            out[i: i + batch_size] = filter_output(x, smoothing, cutoff).cpu().numpy()
     return out
 
 
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
-                             batch_size: int = 64, num_inference_steps: int | None = None,
+                             batch_size: int = 64, generation: GenerationConfig | None = None,
                              residual: bool = True, progress: Callable[[int], None] | None = None,
                              residual_weights: np.ndarray | None = None, precision: str = "fp32") -> np.ndarray:
     """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
-    (see :func:`window_seeds`). The model runs in eval mode on its own device; DDIM steps default to
-    the model's configuration, and its ``diffusion.eta`` is used. A calibrated model adds its residual
-    noise (``diffusion.residual_scale``, times ``residual_weights [W]`` when given) unless ``residual=False``.
+    (see :func:`window_seeds`). The model runs in eval mode on its own device, with its ``diffusion.eta``;
+    ``generation``: the settings (None: the model's own). A calibrated model adds its residual noise
+    (``residual_scale``, times ``residual_weights [W]`` when given) unless ``residual=False``.
     """
-    z = sample_latents(gesture, conditions, seeds, batch_size, num_inference_steps, residual, progress,
+    z = sample_latents(gesture, conditions, seeds, batch_size, generation, residual, progress,
                        residual_weights, precision)
     timing = conditions[-1] if gesture.config.hears_timing else None
-    return decode_latents(gesture, z, gesture.config.vae.frames, min(batch_size, DECODE_BATCH), timing, precision)
+    return decode_latents(gesture, z, gesture.config.vae.frames, min(batch_size, DECODE_BATCH), timing, precision,
+                          generation)
 
 
 def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64,

@@ -1,24 +1,11 @@
 """Speech -> SMPL-X gestures (docs/design.md, 'Generation and editing'): windows, latent diffusion, decoding,
-seamless stitching, editing.
+the steps after sampling, editing.
 
-Audio of any length is covered by 10-s windows every ``hop_seconds`` (default :data:`HOP_SECONDS`,
-7 s, so neighbours overlap by 3 s); each window is generated on its own and the overlaps are cross-faded in the 6D
-rotation features (a raised-cosine ramp, re-orthonormalised when turned into rotations). Two
-independent samples can disagree in the overlap, and a cross-fade between poses far apart is a fast
-movement; so every window is drawn ``seam_candidates`` times (default 4, each from its own seed) and
-one candidate per window is kept, chosen together over the whole audio: the sequence whose worst seam
-moves least, a seam's cost being the largest frame-to-frame joint displacement (licence-free skeleton)
-of its cross-fade, over the overlap and the frames on either side. Output length is
-``round(duration * 30)`` frames.
-
-A calibrated model's residual noise (the strokes the per-window audio latents leave open, see
-:mod:`emogesture.diffusion.residual`) is weighted per window by how much of it holds sound
-(:data:`FULL_RESIDUAL_ACTIVITY`): silence gets none. A window with less sound than that also settles
-(:func:`settle_quiet_windows`): its motion is blended, by the same weight, toward itself smoothed over
-:data:`SETTLE_SIGMA_SECONDS`, so a silent stretch gives a calm animation that keeps the posture and a slow
-sway. (The training speech has no long pauses, so a model's motion for silence is whatever it makes of
-speech it never heard; a model trained on corpus version 5 moves its wrists at 0.11 m/s there, 60 % of
-its speed on speech.)
+Audio of any length is covered by 10-s windows every ``hop_seconds`` (7 s by default, so neighbours
+overlap by 3 s); each window is drawn on its own, ``seam_candidates`` times, and the steps after sampling
+(:mod:`emogesture.pipeline.postprocess`: residual noise, timing guidance, filters, quiet windows, seams)
+make one sequence of ``round(duration * 30)`` frames. Their settings are the model's
+:class:`~emogesture.models.generation.GenerationConfig`, replaced per call by ``generation=``.
 
 Editing swaps latents (paper §3.4): the emotion and/or the speaker style of every window can come
 from a second audio (window ``i`` takes that audio's window ``i mod n``), or the emotion from a label
@@ -28,60 +15,37 @@ from a second audio (window ``i`` takes that audio's window ``i mod n``), or the
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from os import PathLike
 from pathlib import Path
 
 import numpy as np
 import torch
-from scipy.ndimage import gaussian_filter1d
 
 from emogesture.assets import bundled_model_file
 from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
-from emogesture.errors import EmogestureError, InputFileError
+from emogesture.errors import ConfigError, EmogestureError, InputFileError
 from emogesture.models.speech import LATENT_PARTS
+from emogesture.models.generation import GenerationConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
+from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
+                                             residual_weights, settle_quiet_windows, stitch)
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, auto_style, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
 
 WINDOW_SECONDS = 10.0
-#: Seconds between the starts of a long audio's windows. 7 s (3-s overlaps) rather than 8 s (2-s): on
-#: four 65-s stretches of the val texts the seams' 99th-percentile jump over that inside windows fell
-#: from 0.85-1.11 to 0.76-0.97 (wrist speed unchanged), for one window in eight more; 6 s did no
-#: better (experiments/README.md, "Longer overlaps").
-HOP_SECONDS = 7.0
+#: Seconds between the starts of a long audio's windows, unless a model's settings say otherwise
+#: (experiments/README.md, "Longer overlaps": 3-s overlaps make smoother seams than 2-s ones).
+HOP_SECONDS = GenerationConfig().hop_seconds
 #: Draws denoised together: each DDIM step is one batched denoiser call, so larger batches spread its
 #: fixed cost; every draw has its own generator, so the result does not depend on the batch.
 SAMPLING_BATCH = 256
-#: Seams whose cross-fades are costed in one forward kinematics (:func:`choose_seam_candidates`): with 4
-#: candidates a window, 16 seams are 256 cross-fades of ~90 frames, about 150 MB of work space.
-SEAMS_PER_BATCH = 16
-#: Share of a window's frames with sound (:func:`emogesture.audio.window_activity`) from which its
-#: residual noise is added in full; below it the noise shrinks linearly to none for silence.
-FULL_RESIDUAL_ACTIVITY = 0.5
-#: Standard deviation (s) of the Gaussian over time toward which a quiet window's motion settles.
-SETTLE_SIGMA_SECONDS = 1.0
-
-
-def settle_quiet_windows(features: np.ndarray, weights: np.ndarray, fps: float) -> np.ndarray:
-    """Drawn windows' motion features ``[W, T, D]`` with their sound weights ``[W]`` in [0, 1] (1: at
-    least :data:`FULL_RESIDUAL_ACTIVITY` of the window holds sound) -> the same, each window blended by
-    ``1 − weight`` toward itself smoothed over time (a Gaussian of :data:`SETTLE_SIGMA_SECONDS`): a
-    silent window keeps its slow posture changes and loses its strokes; a window with speech is unchanged."""
-    quiet = np.asarray(weights, np.float64) < 1.0
-    if not quiet.any():
-        return features
-    out = features.copy()
-    smooth = gaussian_filter1d(features[quiet].astype(np.float64), SETTLE_SIGMA_SECONDS * fps, axis=1, mode="nearest")
-    w = np.asarray(weights, np.float64)[quiet][:, None, None]
-    out[quiet] = (w * features[quiet] + (1.0 - w) * smooth).astype(features.dtype)
-    return out
 
 
 @dataclass
@@ -95,134 +59,6 @@ class EditRequest:
 
 
 EMOTION_MODES = ("auto", "own")
-
-
-def crossfade_ramp(overlap: int) -> np.ndarray:
-    """The incoming window's weights ``[overlap]`` over an overlap (raised cosine from 0 to 1)."""
-    return 0.5 - 0.5 * np.cos(np.pi * (np.arange(overlap) + 0.5) / overlap)
-
-
-def crossfade_weights(num_frames: int, starts: list[int], window: int) -> np.ndarray:
-    """Per-window frame weights ``[W, window]`` that sum to 1 over overlapping windows.
-
-    Each window ramps up (raised cosine) over its overlap with the previous window and down over its
-    overlap with the next one.
-    """
-    w = np.ones((len(starts), window), np.float64)
-    for i in range(1, len(starts)):
-        overlap = starts[i - 1] + window - starts[i]
-        if overlap > 0:
-            ramp = crossfade_ramp(overlap)
-            w[i, :overlap] *= ramp
-            w[i - 1, window - overlap :] *= 1.0 - ramp
-    return w
-
-
-def largest_joint_jumps(joints: np.ndarray | torch.Tensor) -> np.ndarray:
-    """Joint positions ``[..., T, J, 3]`` -> the largest joint displacement between frames ``[..., T - 1]``.
-
-    The square root is taken of the largest squared displacement (the same number), with the three
-    coordinates summed apart: an order of magnitude faster than a norm over a last axis of three."""
-    joints = torch.as_tensor(joints)
-    step = (joints[..., 1:, :, :] - joints[..., :-1, :, :]).square_()
-    return (step[..., 0] + step[..., 1] + step[..., 2]).amax(-1).sqrt_().numpy()
-
-
-def feature_jumps(frames: np.ndarray) -> np.ndarray:
-    """Frame-to-frame change ``[K, L, D] -> [K, L - 1]`` (Euclidean norm over the features)."""
-    return np.linalg.norm(np.diff(frames, axis=1), axis=-1)
-
-
-def _crossfade_frames(previous: np.ndarray, incoming: np.ndarray, overlap: int) -> np.ndarray:
-    """Every cross-fade of candidates ``previous [Ka, T, D]`` into ``incoming [Kb, T, D]`` over ``overlap``
-    frames, with the frame on either side: ``[Ka · Kb, L, D]`` (``L = overlap + 2``, or ``overlap`` when the
-    windows overlap whole)."""
-    ka, kb, t, d = len(previous), len(incoming), previous.shape[1], previous.shape[2]
-    frames = np.empty((ka, kb, overlap + 2 * (overlap < t), d), np.result_type(previous, incoming))
-    faded = frames[:, :, 1: overlap + 1] if overlap < t else frames
-    if overlap < t:  # the frame before the overlap (previous window) and after it (the incoming one)
-        frames[:, :, 0] = previous[:, None, t - overlap - 1]
-        frames[:, :, -1] = incoming[None, :, overlap]
-    ramp = crossfade_ramp(overlap).astype(frames.dtype)[None, None, :, None]
-    np.multiply(1 - ramp, previous[:, None, t - overlap:], out=faded)
-    faded += ramp * incoming[None, :, :overlap]
-    return frames.reshape(ka * kb, *frames.shape[2:])
-
-
-def seam_costs(previous: np.ndarray, incoming: np.ndarray, overlap: int,
-               jumps: Callable[[np.ndarray], np.ndarray] = feature_jumps) -> np.ndarray:
-    """The cost of each seam between candidates ``previous [Ka, T, D]`` and ``incoming [Kb, T, D]``
-    overlapping by ``overlap`` frames -> ``[Ka, Kb]``: the largest jump of their cross-fade, taken over
-    the overlap plus the frame on either side (``jumps`` maps frames ``[K, L, D]`` to jumps ``[K, L - 1]``).
-    """
-    return jumps(_crossfade_frames(previous, incoming, overlap)).max(axis=1).reshape(len(previous), len(incoming))
-
-
-def _all_seam_costs(candidates: Sequence[np.ndarray], starts: list[int],
-                    jumps: Callable[[np.ndarray], np.ndarray]) -> list[np.ndarray]:
-    """:func:`seam_costs` of every seam (window ``i - 1`` into ``i``, ``i >= 1``; zeros where windows do not
-    overlap). The cross-fades of up to :data:`SEAMS_PER_BATCH` seams of one overlap go through ``jumps``
-    together: one forward kinematics for a minute of audio instead of one per seam (a 60-s clip's 8
-    seams took about a quarter of the time), with memory bounded for long audio."""
-    costs = {i: np.zeros((len(candidates[i - 1]), len(candidates[i]))) for i in range(1, len(candidates))}
-    by_overlap: dict[int, list[int]] = {}
-    for i in range(1, len(candidates)):
-        overlap = starts[i - 1] + candidates[i].shape[1] - starts[i]
-        if overlap > 0:
-            by_overlap.setdefault(overlap, []).append(i)
-    for overlap, seams in by_overlap.items():
-        for first in range(0, len(seams), SEAMS_PER_BATCH):
-            chunk = seams[first: first + SEAMS_PER_BATCH]
-            frames = [_crossfade_frames(candidates[i - 1], candidates[i], overlap) for i in chunk]
-            worst = jumps(np.concatenate(frames)).max(axis=1)
-            for i, part in zip(chunk, np.split(worst, np.cumsum([len(f) for f in frames])[:-1])):
-                costs[i] = part.reshape(costs[i].shape)
-    return list(costs.values())
-
-
-def choose_seam_candidates(candidates: Sequence[np.ndarray], starts: list[int],
-                           jumps: Callable[[np.ndarray], np.ndarray] = feature_jumps) -> np.ndarray:
-    """Per window, its candidates ``[K_i, T, D]`` (a ``[W, K, T, D]`` array works) -> windows ``[W, T, D]``.
-
-    One candidate per window, chosen together (a bottleneck Viterbi path): the sequence whose largest
-    seam cost (:func:`seam_costs`, the largest jump of a cross-fade) is smallest, and among those the
-    one with the smallest sum of seam costs. Unlike choosing window by window, this can also pick the
-    earlier window of a seam, e.g. one that does not stroke where the next one fades in. Ties go to the
-    lower candidate index; with one candidate per window, or no overlaps, candidate 0 everywhere.
-    """
-    # per candidate of the current window, the best path ending there: its worst seam and its cost sum
-    worst, total = np.zeros(len(candidates[0])), np.zeros(len(candidates[0]))
-    back = []
-    for cost in _all_seam_costs(candidates, starts, jumps):
-        path_worst, path_total = np.maximum(worst[:, None], cost), total[:, None] + cost
-        best = np.array([np.lexsort((path_total[:, b], path_worst[:, b]))[0] for b in range(cost.shape[1])])
-        back.append(best)
-        cols = np.arange(cost.shape[1])
-        worst, total = path_worst[best, cols], path_total[best, cols]
-    pick = [int(np.lexsort((total, worst))[0])]
-    for b in reversed(back):
-        pick.append(int(b[pick[-1]]))
-    pick.reverse()
-    return np.stack([candidates[i][k] for i, k in enumerate(pick)])
-
-
-def stitch(windows: np.ndarray, starts: list[int], num_frames: int) -> np.ndarray:
-    """Cross-fade generated windows ``[W, T, D]`` placed at frame ``starts`` into ``[num_frames, D]``."""
-    n, t, d = windows.shape
-    weights = crossfade_weights(num_frames, starts, t)
-    out = np.zeros((max(num_frames, max(starts) + t), d), np.float64)
-    norm = np.zeros(len(out), np.float64)
-    for win, s, w in zip(windows, starts, weights):
-        out[s : s + t] += w[:, None] * win
-        norm[s : s + t] += w
-    out = out[:num_frames] / np.maximum(norm[:num_frames, None], 1e-8)
-    return out.astype(np.float32)
-
-
-def candidates_drawn(windows: int, seam_candidates: int) -> int:
-    """Candidates drawn per window: ``seam_candidates``, or 1 when a single window has no seam to
-    choose for (candidate 0 would be kept: the same output, a quarter of the sampling)."""
-    return seam_candidates if windows > 1 else 1
 
 
 class GesturePipeline:
@@ -244,6 +80,8 @@ class GesturePipeline:
         self.std = np.asarray(extra["motion_std"], np.float32)
         self.spec = from_dict(MotionFeatureSpec, extra["features"])
         self.fps = int(extra.get("fps", 30))
+        #: how this pipeline generates unless a call says otherwise: the model's stored settings
+        self.generation = gesture.generation or GenerationConfig()
         self.body = SkeletonBody()  # joint positions for choosing seam candidates
 
     @classmethod
@@ -282,12 +120,14 @@ class GesturePipeline:
             joints = self.body.forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), self.spec)
         return largest_joint_jumps(joints)
 
-    def encode(self, waveform: np.ndarray, hop_seconds: float = HOP_SECONDS, progress: Callable[[int], None] | None = None,
-               times: StageTimes | None = None, parts: tuple[str, ...] = LATENT_PARTS
-               ) -> tuple[EncodedWindows, list[float]]:
-        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds``, and their starts (s);
-        ``parts``: the latents wanted (default all three; an edit source needs fewer)."""
-        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop_seconds, progress, times, parts)
+    def encode(self, waveform: np.ndarray, hop_seconds: float | None = None,
+               progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
+               parts: tuple[str, ...] = LATENT_PARTS) -> tuple[EncodedWindows, list[float]]:
+        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` (None: the
+        pipeline's setting), and their starts (s); ``parts``: the latents wanted (default all three; an edit
+        source needs fewer)."""
+        hop = self.generation.hop_seconds if hop_seconds is None else hop_seconds
+        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -338,23 +178,38 @@ class GesturePipeline:
 
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],
                          progress: Callable[[int], None] | None = None,
-                         residual_weights: np.ndarray | None = None, times: StageTimes | None = None
-                         ) -> np.ndarray:
+                         residual_weights: np.ndarray | None = None, times: StageTimes | None = None,
+                         generation: GenerationConfig | None = None) -> np.ndarray:
         """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``
-        (``residual_weights [W]`` scale each window's residual noise)."""
+        (``residual_weights [W]`` scale each window's residual noise; ``generation``: None = the pipeline's)."""
+        settings = generation or self.generation
         timing = conditions[-1] if self.loaded.config.hears_timing else None
         with maybe_stage(times, "sampling"):
-            z = sample_latents(self.loaded, conditions, seeds, batch_size=SAMPLING_BATCH, progress=progress,
-                               residual_weights=residual_weights, precision=self.precision)
+            z = sample_latents(self.loaded, conditions, seeds, batch_size=SAMPLING_BATCH, generation=settings,
+                               progress=progress, residual_weights=residual_weights, precision=self.precision)
         with maybe_stage(times, "motion decoder"):
             return decode_latents(self.loaded, z, self.loaded.config.vae.frames, timing=timing,
-                                  precision=self.precision)
+                                  precision=self.precision, generation=settings)
+
+    def settings(self, generation: GenerationConfig | None = None, seam_candidates: int | None = None,
+                 hop_seconds: float | None = None) -> GenerationConfig:
+        """The settings of one call: ``generation`` (None: the pipeline's) with ``seam_candidates`` and
+        ``hop_seconds`` replaced where given."""
+        settings = generation or self.generation
+        changes = {k: v for k, v in (("seam_candidates", seam_candidates), ("hop_seconds", hop_seconds))
+                   if v is not None}
+        if not changes:
+            return settings
+        try:
+            return replace(settings, **changes)
+        except ConfigError as e:
+            raise EmogestureError(str(e)) from None
 
     def draw_windows(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0,
-                     samples: int = 1, hop_seconds: float = HOP_SECONDS, seam_candidates: int = 4,
+                     samples: int = 1, hop_seconds: float | None = None, seam_candidates: int | None = None,
                      emotion_mode: str = "auto", encoded: tuple[EncodedWindows, list[float]] | None = None,
-                     progress: Callable[[int], None] | None = None, times: StageTimes | None = None
-                     ) -> tuple[np.ndarray, list[int]]:
+                     progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
+                     generation: GenerationConfig | None = None) -> tuple[np.ndarray, list[int]]:
         """A 16 kHz waveform ``[N]`` -> every window drawn, before stitching: raw motion features
         ``[samples, W, K, T, D]`` (``K`` candidates per window, see :func:`candidates_drawn`) and the
         windows' start frames. Arguments as in :meth:`generate`.
@@ -362,24 +217,21 @@ class GesturePipeline:
         Every sample's every candidate of every window is drawn in one batched pass (each from its own
         generator, so the result does not depend on how many are drawn together).
         """
-        if seam_candidates < 1:
-            raise EmogestureError(f"seam_candidates must be at least 1, got {seam_candidates}")
-        enc, starts_s = encoded if encoded is not None else self.encode(waveform, hop_seconds, times=times)
+        settings = self.settings(generation, seam_candidates, hop_seconds)
+        enc, starts_s = encoded if encoded is not None else self.encode(waveform, settings.hop_seconds, times=times)
         conds = self.conditions(enc, edit, emotion_mode)
         starts = [int(round(s * self.fps)) for s in starts_s]
         n = len(starts)
-        k_cand = candidates_drawn(n, seam_candidates)
+        k_cand = candidates_drawn(n, settings.seam_candidates)
         draws = [(k, i, c) for k in range(samples) for i in range(n) for c in range(k_cand)]
         rows = np.array([i for _, i, _ in draws])
         picked = [c[rows] for c in conds]
-        # residual noise stands for strokes the audio leaves open: none without sound, in full from half
-        # a window of it (every window of the corpus's speech has at least 0.6)
-        activity = window_activity(waveform, TARGET_SAMPLE_RATE, starts_s)
-        weights = np.clip(activity / FULL_RESIDUAL_ACTIVITY, 0.0, 1.0)[rows]
+        weights = residual_weights(window_activity(waveform, TARGET_SAMPLE_RATE, starts_s))[rows]
         # candidate 0 of window i keeps the seed it has with one candidate
         seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
                  for k, i, c in draws]
-        drawn = settle_quiet_windows(self.generate_windows(picked, seeds, progress, weights, times), weights, self.fps)
+        drawn = settle_quiet_windows(self.generate_windows(picked, seeds, progress, weights, times, settings),
+                                     weights, self.fps)
         return drawn.reshape(samples, n, k_cand, *drawn.shape[1:]), starts
 
     def to_sequence(self, feats: np.ndarray) -> SMPLXSequence:
@@ -389,14 +241,15 @@ class GesturePipeline:
         return SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
-                 hop_seconds: float = HOP_SECONDS, seam_candidates: int = 4, emotion_mode: str = "auto",
+                 hop_seconds: float | None = None, seam_candidates: int | None = None, emotion_mode: str = "auto",
                  encoded: tuple[EncodedWindows, list[float]] | None = None,
-                 progress: Callable[[int], None] | None = None, times: StageTimes | None = None
-                 ) -> list[SMPLXSequence]:
+                 progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
+                 generation: GenerationConfig | None = None) -> list[SMPLXSequence]:
         """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
 
-        ``seam_candidates``: samples drawn per window, of which one per window is kept so that the
-        worst seam moves least (see the module docstring); 1 = every window independent.
+        ``generation``: the settings of this call (None: the model's; :attr:`generation`), with
+        ``seam_candidates`` (samples drawn per window, one kept per window so that the worst seam moves
+        least; 1 = every window independent) and ``hop_seconds`` replaced where given.
         ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
         hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
         ``times``: wall seconds per stage are added to it (``fbank``, ``speech encoders``, ``sampling``,
@@ -404,7 +257,7 @@ class GesturePipeline:
         """
         drawn, starts = self.draw_windows(waveform, edit=edit, seed=seed, samples=samples, hop_seconds=hop_seconds,
                                           seam_candidates=seam_candidates, emotion_mode=emotion_mode,
-                                          encoded=encoded, progress=progress, times=times)
+                                          encoded=encoded, progress=progress, times=times, generation=generation)
         num_frames = int(round(len(waveform) / TARGET_SAMPLE_RATE * self.fps))
         with maybe_stage(times, "seams and poses"):
             return [self.to_sequence(stitch(choose_seam_candidates(candidates, starts, self.joint_jumps), starts,

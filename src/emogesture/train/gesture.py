@@ -7,14 +7,14 @@ random t: L_LD = ||target - Δ(z_t, t, c, e, s[, timing stream])||², target = �
 units and not comparable with ε-runs); (3) without gradient, the full DDIM loop from noise
 with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
 The audio model is frozen: c, e, s are computed once per window by the speech run and cached.
-When training ends, a model with ``diffusion.residual_scale > 0`` (tiny) measures its residual-noise
+When training ends, a model with ``generation.residual_scale > 0`` (tiny) measures its residual-noise
 calibration on the cache's validation windows (:func:`emogesture.pipeline.conditions.calibrate_residual`).
 """
 
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import lightning as L
@@ -31,6 +31,7 @@ from emogesture.data.cache import open_cache
 from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sample_timesteps, training_target
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
 from emogesture.errors import ConfigError
+from emogesture.models.generation import GenerationConfig
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.motion.skeleton import FINGER_JOINTS, WRIST_JOINTS
@@ -77,6 +78,8 @@ class GestureLossWeights:
 @dataclass
 class GestureTrainConfig:
     model: GestureModelConfig = field(default_factory=lambda: GestureModelConfig.preset("tiny"))
+    #: How the trained model will generate (stored with it; changeable later without retraining).
+    generation: GenerationConfig = field(default_factory=lambda: GenerationConfig.preset("tiny"))
     losses: GestureLossWeights = field(default_factory=GestureLossWeights)
     batch_size: int = 32
     lr: float = 1e-4
@@ -122,7 +125,7 @@ class GestureTrainConfig:
 
     @classmethod
     def preset(cls, size: str = "tiny", variant: str = "joint") -> "GestureTrainConfig":
-        cfg = cls(model=GestureModelConfig.preset(size, variant))
+        cfg = cls(model=GestureModelConfig.preset(size, variant), generation=GenerationConfig.preset(size, variant))
         if size == "paper":
             cfg.batch_size = 64
         else:
@@ -335,7 +338,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
 
     # residual-noise calibration on the held-out validation windows, once, when training ends
     calibration = None
-    if config.model.diffusion.residual_scale > 0:
+    if config.generation.residual_scale > 0:
         speech_trained = trained_splits(speech.loaded) if speech is not None else []
         if "val" in speech_trained:
             print(f"note: the speech model {speech.loaded.path} trained on the val split, so the residual noise is "
@@ -353,10 +356,11 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
         # the weight average takes its last update, and the export when training ends comes after it
         if calibration is not None and m.global_step >= (m.trainer.max_steps or 0) > 0:
             was_training = m.averaged.training
-            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir), *calibration, seed=seed)
+            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir, m.cfg.generation),
+                                       *calibration, seed=seed)
             m.averaged.train(was_training)
             done["residual_calibration"] = {**stats, "step": m.global_step, "split": "val"}
-        save_model(run_dir, "gesture", m.averaged, m.cfg.model, done)
+        save_model(run_dir, "gesture", m.averaged, m.cfg.model, done, generation=m.cfg.generation)
 
     return data, module, export
 
@@ -364,7 +368,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
 def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", seed: int = 0,
                   overwrite: bool = False, scale: float = 1.0) -> dict:
     """Write a copy of the gesture model of ``run`` to ``out`` with its residual-noise calibration
-    measured on ``split`` of the cache and ``diffusion.residual_scale = scale`` (``emogesture calibrate
+    measured on ``split`` of the cache and ``generation.residual_scale = scale`` (``emogesture calibrate
     gesture``); returns what was measured. For models trained before calibration existed, or to
     calibrate on other held-out windows."""
     out = Path(out)
@@ -379,6 +383,6 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     windows = cache.split(split)
     stats = calibrate_residual(gesture, model_conditions(gesture, cache, split, speech), windows.motion, seed=seed)
     stats.update(step=gesture.extra.get("step"), split=split)
-    gesture.config.diffusion.residual_scale = float(scale)
-    save_model(out, "gesture", gesture.model, gesture.config, {**gesture.extra, "residual_calibration": stats})
+    save_model(out, "gesture", gesture.model, gesture.config, {**gesture.extra, "residual_calibration": stats},
+               generation=replace(gesture.generation, residual_scale=float(scale)))
     return stats

@@ -1,0 +1,209 @@
+"""Animate a speech recording into files: what ``emogesture generate`` does, callable from Python.
+
+An :class:`AnimationRequest` says what to make: the speech, the output folder, the emotion (the speech's
+own, ``auto`` or ``own``, or a label), an optional second recording for the emotion and/or one for the
+speaker style, the formats, the seed, the number of samples and of seam candidates. :func:`animate`
+turns it into ``<speech><tag>_seed<seed>_<k>.<format>`` for each sample ``k`` and
+``<speech><tag>_seed<seed>_perception.json`` in the output folder, where ``<tag>`` names the edit
+(``_emotion-<stem>`` or ``_emotion-<label>``, then ``_style-<stem>``, then ``_own``). Every output is
+checked before anything is computed, so an existing file without ``overwrite`` leaves nothing new behind.
+
+Example (the bundled model; writes ``out/talk_emotion-happiness_seed0_0.npz`` and the perception report)::
+
+    pipe = GesturePipeline.from_run()
+    result = animate(pipe, AnimationRequest("talk.flac", "out", emotion="happiness", formats=("npz",)))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tqdm import tqdm
+
+from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
+from emogesture.data.beat import EMOTIONS
+from emogesture.errors import EmogestureError
+from emogesture.export import FORMATS, export_paths, export_sequence, parse_formats
+from emogesture.fileio import atomic_output, check_output
+from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
+from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
+from emogesture.pipeline.postprocess import candidates_drawn
+from emogesture.types import SMPLXSequence
+
+__all__ = ["AnimationRequest", "AnimationResult", "animate", "emotion_request"]
+
+
+def emotion_request(text: str | None) -> tuple[str, str | None]:
+    """An emotion request -> ``(mode, label)``: ``auto`` (also for None or empty) or ``own`` -> the speech's
+    own emotion, ``(mode, None)``; an emotion label (any case) -> ``("auto", label)``, an edit toward it."""
+    value = (text or "auto").strip().lower()
+    if value in ("auto", "own"):
+        return value, None
+    if value not in EMOTIONS:
+        raise EmogestureError(f"--emotion {text!r}: unknown; use auto, own or one of {', '.join(EMOTIONS)}")
+    return "auto", value
+
+
+@dataclass
+class AnimationRequest:
+    """What to animate and where to write it; checked when made (:meth:`validate`).
+
+    ``emotion``: ``auto`` (the speech's own emotion, blended toward neutral where the voice is unlike the
+    training voices), ``own`` (as heard) or a label of :data:`~emogesture.data.beat.EMOTIONS` to animate
+    instead. ``emotion_weight``: 0..1 between the speech's own emotion (0) and the label or the
+    ``emotion_from`` recording (1); None means 1, and a weight without either target is an error.
+    ``formats``: names of :data:`~emogesture.export.FORMATS` (or one comma-separated string).
+    ``samples``: how many different sequences to draw from ``seed`` (files ``_0``, ``_1``, ...);
+    ``seam_candidates``: samples drawn per window, one kept per window so that the worst seam moves
+    least (1 = off; None = the model's setting). Paths may be given as strings; they are held as :class:`~pathlib.Path`.
+    """
+
+    speech: Path
+    out: Path
+    emotion: str = "auto"
+    emotion_weight: float | None = None
+    emotion_from: Path | None = None
+    style_from: Path | None = None
+    formats: tuple[str, ...] = FORMATS
+    seed: int = 0
+    samples: int = 1
+    seam_candidates: int | None = None
+    overwrite: bool = False
+    mode: str = field(init=False, default="auto")  # auto / own, from ``emotion``
+    label: str | None = field(init=False, default=None)  # the label edited toward, from ``emotion``
+    weight: float = field(init=False, default=1.0)  # ``emotion_weight`` with None read as 1
+
+    def __post_init__(self) -> None:
+        self.speech, self.out = Path(self.speech), Path(self.out)
+        self.emotion_from = None if self.emotion_from is None else Path(self.emotion_from)
+        self.style_from = None if self.style_from is None else Path(self.style_from)
+        self.validate()
+
+    def validate(self) -> None:
+        """Check the request (without reading any file) and set :attr:`mode`, :attr:`label` and
+        :attr:`weight`; raises :class:`EmogestureError` with a one-line message naming the problem."""
+        text = self.formats if isinstance(self.formats, str) else ",".join(self.formats)
+        self.formats = parse_formats(text)
+        self.mode, self.label = emotion_request(self.emotion)
+        if self.label is not None and self.emotion_from is not None:
+            raise EmogestureError(f"--emotion {self.label} and --emotion-from {self.emotion_from}: choose one target "
+                                  "emotion")
+        if self.emotion_weight is not None and self.label is None and self.emotion_from is None:
+            raise EmogestureError("--emotion-weight needs --emotion LABEL or --emotion-from WAV (a target to blend "
+                                  "toward)")
+        self.weight = 1.0 if self.emotion_weight is None else self.emotion_weight
+        if not 0.0 <= self.weight <= 1.0:
+            raise EmogestureError(f"--emotion-weight {self.weight}: must be between 0 and 1")
+        if self.samples < 1:
+            raise EmogestureError("--samples must be at least 1")
+        if self.seam_candidates is not None and self.seam_candidates < 1:
+            raise EmogestureError("--seam-candidates must be at least 1")
+        if self.out.exists() and not self.out.is_dir():
+            raise EmogestureError(f"{self.out}: is a file; --out must be a folder")
+
+    @property
+    def edited(self) -> bool:
+        """Whether anything comes from elsewhere: an emotion label or recording, or a style recording."""
+        return bool(self.emotion_from or self.label or self.style_from)
+
+    @property
+    def tag(self) -> str:
+        """The output names' edit part: ``_emotion-<stem>`` / ``_emotion-<label>``, ``_style-<stem>``, ``_own``."""
+        tag = ""
+        if self.emotion_from:
+            tag += f"_emotion-{self.emotion_from.stem}"
+        if self.label:
+            tag += f"_emotion-{self.label}"
+        if self.style_from:
+            tag += f"_style-{self.style_from.stem}"
+        return tag + ("_own" if self.mode == "own" else "")
+
+    def stems(self) -> list[Path]:
+        """``out/<speech><tag>_seed<seed>_<k>`` for each sample ``k`` (no extension)."""
+        return [self.out / output_stem(self.speech, self.seed, k, self.tag) for k in range(self.samples)]
+
+    @property
+    def perception_path(self) -> Path:
+        """``out/<speech><tag>_seed<seed>_perception.json``."""
+        return self.out / f"{self.speech.stem}{self.tag}_seed{self.seed}_perception.json"
+
+    def video_label(self, sample: int) -> str:
+        """The three lines shown in a video: the speech's name, where emotion and style come from, seed and sample."""
+        emotion = (f"emotion: {self.label}" if self.label else f"emotion from {self.emotion_from.name}"
+                   if self.emotion_from else f"emotion: own ({self.mode})")
+        if (self.label or self.emotion_from) and self.weight < 1.0:
+            emotion += f" x{self.weight:g}"
+        style = f"style from {self.style_from.name}" if self.style_from else "style: own"
+        return f"{self.speech.name}\n{emotion}  |  {style}\nseed {self.seed}, sample {sample}"
+
+
+@dataclass
+class AnimationResult:
+    """What :func:`animate` wrote and made: per sample the files in format order, the perception report
+    (the speech first, then the ``emotion_from`` recording if any) and its one-line summaries, and the
+    ``samples`` SMPL-X sequences of ``round(duration * fps)`` frames."""
+
+    files: list[list[Path]]
+    perception_path: Path
+    perceived: list[PerceivedEmotion]
+    summaries: list[str]
+    sequences: list[SMPLXSequence]
+
+
+def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool = False,
+            report: Callable[[str], None] | None = None,
+            written: Callable[[Path, SMPLXSequence], None] | None = None) -> AnimationResult:
+    """Animate ``request.speech`` with ``pipe`` and write every output of ``request``.
+
+    Reads the speech and the edit recordings, refuses existing outputs (unless ``request.overwrite``)
+    before computing anything, encodes the speech, perceives its emotion (and that of the
+    ``emotion_from`` recording, whose emotion is blended like the speech's under ``auto``), draws the
+    samples, exports each, and writes the perception report as a JSON list, whole or not at all.
+    ``progress``: tqdm bars on stderr. ``report(summary)`` is called with each perception summary as
+    soon as it is known; ``written(path, sequence)`` after each animation file. Prints nothing itself.
+    """
+    request.validate()
+    wave = pipe.load_speech(request.speech)
+    emotion_wave = pipe.load_speech(request.emotion_from) if request.emotion_from is not None else None
+    style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
+    edit = EditRequest(emotion_weight=request.weight, emotion_label=request.label) if request.edited else None
+    stems, perception_path = request.stems(), request.perception_path
+    for stem in stems:
+        for path in export_paths(stem, request.formats).values():
+            check_output(path, request.overwrite)
+    check_output(perception_path, request.overwrite)
+
+    settings = pipe.settings(seam_candidates=request.seam_candidates)
+    with tqdm(total=len(window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, settings.hop_seconds)),
+              desc="encoding speech", unit="window", disable=not progress, leave=False) as bar:
+        encoded = pipe.encode(wave, progress=bar.update)
+    perceived = [pipe.perceive(*encoded, source=str(request.speech))]
+    if edit is not None and emotion_wave is not None:
+        enc, starts = pipe.encode(emotion_wave, parts=pipe.edit_source_parts("emotion"))
+        perceived.append(pipe.perceive(enc, starts, source=str(request.emotion_from)))
+        edit.emotion_from = (auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech))
+                             if request.mode == "auto" else enc.emotion)
+    if edit is not None and style_wave is not None:
+        edit.style_from = pipe.encode(style_wave, parts=pipe.edit_source_parts("style"))[0].style
+    summaries = [p.summary(request.mode) for p in perceived]
+    for line in summaries:
+        if report is not None:
+            report(line)
+
+    windows = len(encoded[1])
+    with tqdm(total=windows * candidates_drawn(windows, settings.seam_candidates) * request.samples,
+              desc="drawing windows", unit="window", disable=not progress, leave=False) as bar:
+        sequences = pipe.generate(wave, edit=edit, seed=request.seed, samples=request.samples,
+                                  emotion_mode=request.mode, encoded=encoded, progress=bar.update,
+                                  generation=settings)
+    files = []
+    for k, (seq, stem) in enumerate(zip(sequences, stems)):
+        done = None if written is None else (lambda path, seq=seq: written(path, seq))
+        files.append(export_sequence(seq, stem, request.formats, audio=(wave, TARGET_SAMPLE_RATE),
+                                     label=request.video_label(k), overwrite=request.overwrite, progress=progress,
+                                     written=done))
+    with atomic_output(perception_path, request.overwrite) as tmp:
+        tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
+    return AnimationResult(files, perception_path, perceived, summaries, sequences)
