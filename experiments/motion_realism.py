@@ -5,7 +5,9 @@ speech and on real read speech, beside a real conversational take.
 onset coupling, for:
 
 - **corpus**: every ``EVERY``-th take of the corpus (its motion and its own speech), and of its test split
-  (the ground truth of the next column: the test speakers differ from the others);
+  (the ground truth of the next column), the takes ordered by text and then speaker, so that every
+  emotion and every speaker is sampled alike (a text carries one emotion; in the order of the file
+  names, a stride of 4 over 8 test texts a speaker would pick the same two emotions from every speaker);
 - **model, test takes**: the model's motion (``--emotion auto``, seed 0) for the test split's takes of the
   corpus (every ``EVERY``-th), with their speech;
 - **model, real speech**: the same for the real read speech of :mod:`emogesture.data.real_speech`.
@@ -54,13 +56,21 @@ def generated(pipe: GesturePipeline, waves: list, seed: int = 0) -> dict:
     return motion_statistics(sequences)
 
 
+def by_text(takes: list[str]) -> list[str]:
+    """Take names (``SPEAKER_NAME_EMOTION-STYLE_TEXT_TEXT``) ordered by text, then speaker."""
+    def key(take: str) -> tuple:
+        parts = take.split("_")
+        return int(parts[-1]), int(parts[0]), take
+    return sorted(takes, key=key)
+
+
 def main(corpus: str, out_dir: str, model: str | None = None, every: str = "4") -> None:
     step = int(every)
     root = Path(corpus)
-    files = npz_files(root)
-    results = {"corpus": file_statistics(files, step, progress=True)}
+    files = {f.stem: f for f in npz_files(root)}
+    results = {"corpus": file_statistics([files[t] for t in by_text(list(files))], step, progress=True)}
     split = read_split_csv(root / "train_test_split.csv")
-    test = [t for t in sorted(split) if split[t] == "test"][::step]
+    test = by_text([t for t in split if split[t] == "test"])[::step]
     results["corpus, test takes"] = file_statistics([root / "smplxflame_30" / f"{t}.npz" for t in test])
     pipe = GesturePipeline.from_run(model or None)
     results["model, test takes"] = generated(pipe, [load_audio(root / "wave16k" / f"{t}.wav")[0] for t in test])
