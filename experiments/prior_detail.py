@@ -25,6 +25,7 @@ import torch
 from emogesture.audio.timing import timing_stream
 from emogesture.data.cache import open_cache
 from emogesture.eval.motion_stats import joint_angular_speed
+from emogesture.models.generation import GenerationConfig
 from emogesture.motion.filters import lowpass
 from emogesture.motion import features_to_poses
 from emogesture.motion.skeleton import JOINT_NAMES
@@ -86,7 +87,7 @@ def main() -> None:
             if cutoff:
                 row(f"ground truth, low-passed at {cutoff:g} Hz", speeds(pipe, lowpass(torch.tensor(motion), cutoff).numpy()))
         z = encode_motion(pipe.loaded, motion)
-        rec = decode_latents(pipe.loaded, z, motion.shape[1], timing=stream, generation=False)
+        rec = decode_latents(pipe.loaded, z, motion.shape[1], timing=stream, generation=GenerationConfig())
         err = np.linalg.norm(joints(pipe, rec)[..., upper, :] - truth[..., upper, :], axis=-1).mean()
         row(f"{name}: reconstruction", speeds(pipe, rec), f"{err * 1000:.1f} mm",
             column_correlation(pipe, rec, motion, ("left_wrist", "right_wrist")),

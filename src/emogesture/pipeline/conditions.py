@@ -161,18 +161,18 @@ DECODE_BATCH = 16
 @torch.inference_mode()
 def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_size: int = DECODE_BATCH,
                    timing: np.ndarray | None = None, precision: str = "fp32",
-                   generation: GenerationConfig | None | bool = None) -> np.ndarray:
+                   generation: GenerationConfig | None = None) -> np.ndarray:
     """Motion latents ``[W, 256]`` -> raw motion features ``[W, frames, D]`` float32; ``timing [W, T, F]``:
     the windows' timing stream, for a decoder that reads one (``vae.timing_features > 0``);
     ``precision="bf16"``: the decoder runs under bf16 autocast. ``generation``: the settings of the steps
     after decoding (:func:`~emogesture.pipeline.postprocess.guide_timing`,
-    :func:`~emogesture.pipeline.postprocess.filter_output`; None: the model's own); ``False`` decodes as
-    in training (the prior's reconstruction)."""
+    :func:`~emogesture.pipeline.postprocess.filter_output`; None: the model's own); ``GenerationConfig()``
+    (no guidance, no filters) decodes as in training (the prior's reconstruction)."""
     model = evaluating(gesture.model)
     vae = gesture.config.vae
     mean, std = _motion_statistics(gesture)
     reads = vae.timing_features > 0
-    settings = GenerationConfig() if generation is False else settings_of(gesture, generation or None)
+    settings = settings_of(gesture, generation)
     guidance = settings.timing_guidance if reads else 1.0
     smoothing, cutoff = settings.output_smoothing, settings.output_lowpass_hz
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
@@ -219,7 +219,7 @@ def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int
     (encoder mean, then decoder), raw features ``[W, T, D]``; ``timing``: the windows' timing stream,
     for a decoder that reads one."""
     return decode_latents(gesture, encode_motion(gesture, motion, batch_size), motion.shape[1],
-                          min(batch_size, DECODE_BATCH), timing, generation=False)
+                          min(batch_size, DECODE_BATCH), timing, generation=GenerationConfig())
 
 
 def calibrate_residual(gesture: LoadedModel, conditions: list[np.ndarray], motion: np.ndarray, seed: int = 0,
