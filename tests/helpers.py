@@ -13,6 +13,23 @@ from emogesture.types import SMPLXSequence
 SECONDS = 21.0
 
 
+def speech_like(seconds: float = 3.0, sr: int = 16000, seed: int = 0) -> np.ndarray:
+    """Harmonic source with a gliding f0, three formant-like resonances, syllable-rate AM and a little noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * sr)) / sr
+    f0 = 120.0 + 20.0 * np.sin(2 * np.pi * 0.7 * t)
+    phase = 2 * np.pi * np.cumsum(f0) / sr
+    x = np.zeros_like(t)
+    for h in range(1, 60):
+        fh = h * f0
+        env = (np.exp(-(((fh - 700) / 300) ** 2)) + 0.6 * np.exp(-(((fh - 1200) / 400) ** 2))
+               + 0.3 * np.exp(-(((fh - 2500) / 500) ** 2)) + 0.01)
+        x += np.where(fh < sr / 2, env * np.sin(h * phase) / h**0.3, 0.0)
+    x *= 0.2 + 0.8 * np.sin(2 * np.pi * 2.5 * t) ** 2
+    x = 0.5 * x / np.abs(x).max() + 1e-3 * rng.standard_normal(t.size)
+    return x.astype(np.float32)
+
+
 def make_root(root: Path, speakers=(1, 2), takes=(1, 2, 65, 66), seed=0) -> list[str]:
     """A small BEAT2-layout folder: tone-burst audio and smooth random upper-body motion."""
     rng = np.random.default_rng(seed)

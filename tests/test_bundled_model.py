@@ -55,8 +55,8 @@ def test_shipped_files_match_their_checksums_and_load():
     total = sum((BUNDLED_MODEL / n).stat().st_size for n in names)
     assert total <= 25 * 1024 * 1024
     speech = load_model(bundled_model_file("speech"), "speech")
-    assert speech.extra["train_splits"] == ["train"]  # val stays unseen for the calibrations
-    assert speech.extra["emotion_perception"]["info"]["split"] == "val"
+    assert speech.metadata.train_splits == ["train"]  # val stays unseen for the calibrations
+    assert speech.metadata.emotion_perception["info"]["split"] == "val"
 
 
 def test_a_damaged_shipped_file_is_refused(tmp_path):
@@ -89,8 +89,8 @@ def test_thirty_seconds_give_900_frames_and_the_seed_decides(pipe, clip30):
 def test_emotion_edits_by_label_read_as_that_label(pipe):
     """Every window of the demo clip re-generated with each label, classified by the extractor."""
     extractor = load_model(bundled_model_file("extractor"), "extractor")
-    mean = torch.tensor(extractor.extra["motion_mean"])
-    std = torch.tensor(extractor.extra["motion_std"])
+    mean = torch.tensor(extractor.metadata.motion_mean)
+    std = torch.tensor(extractor.metadata.motion_std)
     wave = pipe.load_speech(DEMO_CLIPS / "talk.flac")
     enc, starts = pipe.encode(wave)
     per_label = {}

@@ -8,10 +8,11 @@ import sys
 import pytest
 import torch
 
-from emogesture.checkpoints import (_random_initialisation_skipped, content_checksum, file_sha256, load_model, read_meta,
+from emogesture.checkpoints import (content_checksum, file_sha256, load_model, read_meta,
                                    save_model)
-from emogesture.errors import InputFileError, OutputExistsError
+from emogesture.errors import ConfigError, InputFileError, OutputExistsError
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
+from emogesture.models.metadata import ExtractorMetadata, GestureMetadata
 
 
 def _model(seed=0):
@@ -23,7 +24,7 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
     model = _model().eval()
     save_model(tmp_path / "run", "extractor", model, model.config, {"motion_mean": [0.0, 1.0]})
     loaded = load_model(tmp_path / "run", "extractor")
-    assert loaded.config == model.config and loaded.extra == {"motion_mean": [0.0, 1.0]}
+    assert loaded.config == model.config and loaded.metadata.motion_mean == [0.0, 1.0]
     x = torch.randn(2, 300, 282, generator=torch.Generator().manual_seed(1))
     with torch.no_grad():
         a, b = model(x), loaded.model(x)
@@ -32,40 +33,34 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
 
 
 def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatch):
-    """A model built to be loaded skips torch.nn.init's random fills (in the loading thread only): the
-    global random stream is not touched, every weight is the file's (a gesture model whose file lacks
-    its optional calibration keeps that buffer's constant zeros), and torch.nn.init is as it was
-    afterwards."""
-    import threading
-
+    """A model built to be loaded is built on the meta device: no random fill runs and the global random
+    stream is not touched; every weight is the file's, in the model's own type (float16 files load as
+    float32); buffers computed from the config are the ones a fresh model computes (bit for bit); a gesture
+    model whose file lacks its optional calibration gets that buffer's zeros; torch.nn.init is untouched."""
     from torch import nn
 
     from emogesture.models.gesture import GestureModel, GestureModelConfig
 
     model = _model().eval()
-    save_model(tmp_path / "x", "extractor", model, model.config)
-    gesture = GestureModel(GestureModelConfig.preset("tiny"))
-    state = {k: v for k, v in gesture.state_dict().items() if k != "latent_residual_tril"}
+    save_model(tmp_path / "x", "extractor", model, model.config, weights_dtype=torch.float16)
     calls = []
     kaiming = nn.init.kaiming_uniform_
-    monkeypatch.setattr(nn.init, "kaiming_uniform_", lambda t, *a, **k: calls.append(1) or kaiming(t, *a, **k))
-    fills = {name: getattr(nn.init, name) for name in ("normal_", "trunc_normal_", "kaiming_uniform_")}
+    monkeypatch.setattr(nn.init, "kaiming_uniform_",
+                        lambda *a, **k: calls.append((a[0] if a else k["tensor"]).is_meta) or kaiming(*a, **k))
     torch.manual_seed(3)
     expected = torch.rand(4)
     torch.manual_seed(3)
     loaded = load_model(tmp_path / "x", "extractor")
     assert torch.equal(torch.rand(4), expected)  # nothing was drawn
-    assert not calls  # its Linears' fills were skipped
-    nn.Linear(2, 2)
-    assert calls  # and run again after the load
-    with _random_initialisation_skipped():  # only in the loading thread
-        here, there = torch.zeros(3), torch.zeros(3)
-        nn.init.uniform_(here, 1.0, 2.0)
-        other = threading.Thread(target=nn.init.uniform_, args=(there, 1.0, 2.0))
-        other.start()
-        other.join()
-    assert not here.any() and (there >= 1).all()
-    assert all(torch.equal(a, b) for a, b in zip(model.state_dict().values(), loaded.model.state_dict().values()))
+    assert calls and all(calls)  # a fill only ever met a tensor without memory
+    for k, v in model.state_dict().items():
+        got = loaded.model.state_dict()[k]
+        assert got.dtype == v.dtype and got.device.type == "cpu" and torch.equal(got, v.half().to(v.dtype)), k
+
+    config = GestureModelConfig.preset("tiny")
+    assert config.vae.low_frequency_path and config.vae.detail_path  # the DCT bases and column index below
+    gesture = GestureModel(config)
+    state = {k: v for k, v in gesture.state_dict().items() if k != "latent_residual_tril"}
     gesture.latent_residual_tril.fill_(1.0)
     from safetensors.torch import save_file
 
@@ -77,9 +72,29 @@ def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatc
     meta["checksum_sha256"] = content_checksum(meta)
     (tmp_path / "g" / "model.json").write_text(json.dumps(meta))
     g = load_model(tmp_path / "g", "gesture").model
-    assert not g.latent_residual_tril.any()  # not in the file: its constant initial value
+    assert not g.latent_residual_tril.any() and not g.latent_residual_tril.is_meta  # not in the file: zeros
     assert all(torch.equal(v, g.state_dict()[k]) for k, v in state.items())
-    assert all(getattr(nn.init, name) is fill for name, fill in fills.items())
+    computed = {k: v for k, v in gesture.named_buffers() if k not in gesture.state_dict()}
+    assert {"prior.dct_basis", "prior.detail_basis", "prior.detail_index"} <= set(computed)
+    assert all(torch.equal(dict(g.named_buffers())[k], v) for k, v in computed.items())
+
+
+def test_a_model_that_computes_a_buffer_on_the_default_device_is_named(tmp_path, monkeypatch):
+    from emogesture import checkpoints
+    from emogesture.errors import EmogestureError
+
+    model = _model()
+    save_model(tmp_path / "x", "extractor", model, model.config)
+
+    def build(config):
+        m = MotionFeatureExtractor(config)
+        m.register_buffer("table", torch.arange(3.0), persistent=False)  # on the meta device while loading
+        return m
+
+    checkpoints._builtin_kinds()
+    monkeypatch.setitem(checkpoints._KINDS, "extractor", checkpoints.ModelKind(ExtractorConfig, build))
+    with pytest.raises(EmogestureError, match="MotionFeatureExtractor built table from its config on the meta device"):
+        load_model(tmp_path / "x", "extractor")
 
 
 def test_weights_replaced_while_they_load_are_refused(tmp_path, monkeypatch):
@@ -196,32 +211,31 @@ if when == "after_json":
     checkpoints._commit_pending = lambda *a: os._exit(9)
 torch.manual_seed(1)
 model = MotionFeatureExtractor(ExtractorConfig.preset("tiny"))
-checkpoints.save_model(sys.argv[1], "extractor", model, model.config, {"which": "new"})
+checkpoints.save_model(sys.argv[1], "extractor", model, model.config, {"step": 2})
 """
 
 
 @pytest.mark.parametrize("when", ["before_json", "after_json"])
 def test_a_save_killed_between_its_two_writes_leaves_one_whole_model(tmp_path, when):
     model = _model(0)
-    save_model(tmp_path / "run", "extractor", model, model.config, {"which": "old"})
+    save_model(tmp_path / "run", "extractor", model, model.config, {"step": 1})
     proc = subprocess.run([sys.executable, "-c", _KILLED_SAVE, str(tmp_path / "run"), when])
     assert proc.returncode == 9
     loaded = load_model(tmp_path / "run", "extractor")
-    want = "old" if when == "before_json" else "new"
-    assert loaded.extra["which"] == want
-    reference = model if want == "old" else _model(1)
+    want = 1 if when == "before_json" else 2
+    assert loaded.metadata.step == want
+    reference = model if want == 1 else _model(1)
     for k, v in reference.state_dict().items():
         assert torch.equal(loaded.model.state_dict()[k], v), k
     # the next save cleans up whatever the killed one left
-    save_model(tmp_path / "run", "extractor", model, model.config, {"which": "again"})
+    save_model(tmp_path / "run", "extractor", model, model.config, {"step": 3})
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
-    assert load_model(tmp_path / "run", "extractor").extra["which"] == "again"
+    assert load_model(tmp_path / "run", "extractor").metadata.step == 3
 
 
 def test_a_device_problem_is_not_read_as_a_bad_weights_file(tmp_path):
     """Weights are read on the CPU and the model moved afterwards, so the device asked for never reaches
     the file reader (which called a device it could not use a "corrupt weights file")."""
-    import torch
 
     from emogesture.checkpoints import load_model, save_model
     from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
@@ -248,3 +262,25 @@ def test_a_model_too_large_for_the_device_is_a_one_line_error(tmp_path, monkeypa
     monkeypatch.setattr(torch.nn.Module, "to", out_of_memory)
     with pytest.raises(EmogestureError, match=r"model\.json: the model does not fit in the memory of cuda:1$"):
         load_model(tmp_path / "m", "speech", device="cuda:1")
+
+
+def test_metadata_is_typed_keeps_what_it_does_not_know_and_names_what_is_missing(tmp_path):
+    model = _model()
+    save_model(tmp_path / "run", "extractor", model, model.config,
+               ExtractorMetadata(step=7, motion_mean=[0, 1], other={"from_a_newer_version": {"a": 1}}))
+    loaded = load_model(tmp_path / "run", "extractor")
+    assert isinstance(loaded.metadata, ExtractorMetadata) and loaded.metadata.step == 7
+    assert loaded.metadata.motion_mean == [0.0, 1.0] and all(isinstance(v, float) for v in loaded.metadata.motion_mean)
+    assert loaded.metadata.other == {"from_a_newer_version": {"a": 1}}
+    save_model(tmp_path / "copy", "extractor", loaded.model, loaded.config, loaded.metadata)
+    assert json.loads((tmp_path / "copy" / "model.json").read_text())["extra"]["from_a_newer_version"] == {"a": 1}
+    with pytest.raises(ConfigError, match="holds no 'motion_std'"):
+        loaded.metadata.require("motion_std", loaded.path)
+    with pytest.raises(ConfigError, match="GestureMetadata given for a extractor model"):
+        save_model(tmp_path / "bad", "extractor", model, model.config, GestureMetadata(step=1))
+    stored = json.loads((tmp_path / "run" / "model.json").read_text())
+    stored["extra"]["step"] = "many"
+    stored["checksum_sha256"] = content_checksum(stored)
+    (tmp_path / "run" / "model.json").write_text(json.dumps(stored))
+    with pytest.raises(InputFileError, match=r"model.json: invalid stored data \(extra.step: 'many' fits none of int"):
+        load_model(tmp_path / "run", "extractor")

@@ -9,7 +9,7 @@ from emogesture.data.cache import open_cache
 from emogesture.data.prepare import prepare
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.train.speech import speech_model_extra
+from emogesture.train.speech import speech_model_metadata
 
 from helpers import make_root
 
@@ -21,7 +21,7 @@ def test_changed_take_gives_fresh_latents(tmp_path):
     torch.manual_seed(0)
     cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
     save_model(tmp_path / "speech", "speech", SpeechDisentangler(cfg), cfg,
-               speech_model_extra(cache, [1, 2], 0, ["train"]))
+               speech_model_metadata(cache, [1, 2], 0, ["train"]))
     before = SpeechLatentEncoder.from_run(tmp_path / "speech").encode_split(cache, "test")
     # cached beside the windows, never beside the model (the bundled model lives inside the package)
     assert len(list((tmp_path / "cache" / "latents").glob("*.npz"))) == 1 and not (tmp_path / "speech" / "latents").exists()

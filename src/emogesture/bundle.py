@@ -59,16 +59,16 @@ def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], ext
     out.mkdir(parents=True, exist_ok=True)
     s = load_model(speech, "speech")
     g = load_model(gesture, "gesture")
-    if g.extra.get("speech_weights_sha256") != s.meta["weights_sha256"]:
+    if g.metadata.speech_weights_sha256 != s.meta["weights_sha256"]:
         raise InputFileError(s.path, f"is not the speech model {g.path} was trained with")
     settings = g.generation.with_overrides(list(generation))
-    save_model(out, "speech", s.model, s.config, s.extra, name="speech", weights_dtype=weights_dtype)
+    save_model(out, "speech", s.model, s.config, s.metadata, name="speech", weights_dtype=weights_dtype)
     speech_sha = read_meta(out, "speech", "speech")["weights_sha256"]
-    extra = {**g.extra, "speech_model": "speech.json", "speech_weights_sha256": speech_sha}
-    save_model(out, "gesture", g.model, g.config, extra, name="gesture", weights_dtype=weights_dtype,
+    metadata = g.metadata.replace(speech_model="speech.json", speech_weights_sha256=speech_sha)
+    save_model(out, "gesture", g.model, g.config, metadata, name="gesture", weights_dtype=weights_dtype,
                generation=settings)
     if extractor is not None:
         x = load_model(extractor, "extractor")
-        save_model(out, "extractor", x.model, x.config, x.extra, name="extractor", weights_dtype=weights_dtype)
+        save_model(out, "extractor", x.model, x.config, x.metadata, name="extractor", weights_dtype=weights_dtype)
     write_checksums(out)
     return out

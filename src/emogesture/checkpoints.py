@@ -11,9 +11,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import threading
 from collections.abc import Callable
-from contextlib import contextmanager
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -30,6 +28,7 @@ from emogesture.config import from_dict, to_dict
 from emogesture.errors import ConfigError, EmogestureError, InputFileError, OutputExistsError
 from emogesture.fileio import atomic_output, fsync_dir
 from emogesture.models.generation import GenerationConfig, split_legacy_settings
+from emogesture.models.metadata import ModelMetadata, metadata_of
 
 FORMAT = "emogesture-model"
 FORMAT_VERSION = 2
@@ -68,7 +67,9 @@ def _builtin_kinds() -> None:
 class LoadedModel:
     model: nn.Module
     config: Any
-    extra: dict
+    #: what the file stores beside weights and config (a :class:`ModelMetadata` of the model's kind)
+    metadata: ModelMetadata
+    #: the whole JSON as read
     meta: dict
     path: Path
     #: how a gesture model generates (the ``generation`` section of its JSON); None for other kinds
@@ -131,7 +132,7 @@ def save_model(
     kind: str,
     model: nn.Module,
     config: Any,
-    extra: dict | None = None,
+    metadata: ModelMetadata | dict | None = None,
     *,
     name: str = "model",
     overwrite: bool = True,
@@ -140,8 +141,9 @@ def save_model(
 ) -> Path:
     """Write ``model``'s weights and ``{kind, config, extra, version}``; returns the JSON path.
 
-    ``extra`` holds JSON-safe data stored with the model (normalisation statistics, label names,
-    per-class mean latents, ...); ``generation``, a gesture model's generation settings. ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
+    ``metadata`` (a :class:`ModelMetadata` of ``kind``, or its fields as a mapping: normalisation
+    statistics, label names, per-class mean latents, ...) is stored as the ``extra`` section; ``generation``, a gesture model's generation
+    settings. ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
     tensors in that type (they are cast back to the model's type when loaded).
 
     The pair is replaced as one: the new weights go to a hidden pending file first, then the JSON (which
@@ -171,7 +173,7 @@ def save_model(
         "kind": kind,
         "emogesture_version": __version__,
         "config": to_dict(config),
-        "extra": extra or {},
+        "extra": metadata_of(kind, metadata).to_dict(),
         "weights": weights.name,
         "weights_sha256": file_sha256(pending),
     }
@@ -254,25 +256,36 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
     meta = read_meta(path, kind, name)
     weights = _weights_file(weights, meta["weights_sha256"])
     try:
+        metadata = metadata_of(kind, meta["extra"])
+    except ConfigError as e:
+        raise InputFileError(meta_path, f"invalid stored data ({e})") from None
+    try:
         config, generation = _stored_configs(kind, meta)
-        with _random_initialisation_skipped():
-            model = _KINDS[kind].build(config)
+        model = _built_empty(_KINDS[kind].build, config)
     except ConfigError as e:
         raise InputFileError(meta_path, f"invalid stored config ({e})") from None
     except (RuntimeError, ValueError, TypeError, AttributeError) as e:
         raise InputFileError(meta_path, f"invalid stored config: the model cannot be built from it "
                              f"({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
     missing, unexpected = _load_weights(model, weights)
-    missing = [k for k in missing if k not in getattr(model, "optional_state_keys", ())]
-    if missing or unexpected:
+    optional = getattr(model, "optional_state_keys", ())
+    if [k for k in missing if k not in optional] or unexpected:
+        missing = [k for k in missing if k not in optional]
         raise InputFileError(
             weights, f"weights do not fit the stored config (missing {list(missing)[:3]}, unexpected {list(unexpected)[:3]})"
         )
+    if missing:  # optional entries a file from before they existed lacks: their default, zeros
+        model.load_state_dict({k: torch.zeros_like(model.get_buffer(k) if k in dict(model.named_buffers())
+                                                   else model.get_parameter(k), device="cpu") for k in missing},
+                              strict=False, assign=True)
+    if empty := _left_empty(model):
+        raise EmogestureError(f"{meta_path}: {type(model).__name__} built {empty[0]} from its config on the meta "
+                              "device (compute such buffers with device='cpu')")
     try:
         model.to(device).eval()
     except torch.cuda.OutOfMemoryError:
         raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
-    return LoadedModel(model, config, meta.get("extra", {}), meta, meta_path, generation)
+    return LoadedModel(model, config, metadata, meta, meta_path, generation)
 
 
 def _stored_configs(kind: str, meta: dict) -> tuple[Any, GenerationConfig | None]:
@@ -286,62 +299,31 @@ def _stored_configs(kind: str, meta: dict) -> tuple[Any, GenerationConfig | None
     return from_dict(_KINDS[kind].config_cls, config), from_dict(GenerationConfig, {**legacy, **meta.get("generation", {})})
 
 
-#: ``torch.nn.init``'s random fills, skipped while a model is built only to be loaded.
-_RANDOM_INITS = ("uniform_", "normal_", "trunc_normal_", "kaiming_uniform_", "kaiming_normal_",
-                 "xavier_uniform_", "xavier_normal_", "orthogonal_")
-_INIT_LOCK = threading.Lock()
-_SKIPPING = threading.local()  # .depth: loads under way in this thread
-_REPLACED: dict[str, Callable] = {}  # torch's own fills, while any thread loads
-_loads = 0  # loads under way in all threads
+def _built_empty(build: Callable[[Any], nn.Module], config: Any) -> nn.Module:
+    """``build(config)`` on the meta device: parameters and persistent buffers get a shape and no memory
+    and draw nothing at random (the file sets them). A model built to be loaded thus skips its random
+    initialisation, which took 2.7 s of the paper speech model's 4.5-s load. Buffers computed from the config
+    (``persistent=False``: DCT bases, column indices) are built on the CPU explicitly by their modules, since
+    the file does not hold them."""
+    with torch.device("meta"):
+        return build(config)
 
 
-@contextmanager
-def _random_initialisation_skipped():
-    """Inside, ``torch.nn.init``'s random fills leave their tensors as they are, and the global random
-    stream is put back as it was on leaving (a fill called some other way, as torch's own attention
-    layers do, still draws, but nothing is consumed): a model built to have its weights loaded does
-    not draw random ones first — they took 2.7 s of the paper speech model's 4.5-s load, 0.9 of the
-    gesture model's 1.1. The file then sets every parameter and persistent buffer (:func:`load_model`
-    refuses one that lacks any but a model's ``optional_state_keys``, which are not filled at random);
-    the constant fills (``zeros_``, ``ones_``) still run.
-
-    Only the loading thread skips: the fills are replaced by ones that skip in a thread inside this
-    context and fill as usual in any other, and put back when the last load (of any thread) ends."""
-    global _loads
-    with _INIT_LOCK:
-        if _loads == 0:
-            for name in _RANDOM_INITS:
-                _REPLACED[name] = getattr(nn.init, name)
-                setattr(nn.init, name, _skipped_while_loading(_REPLACED[name]))
-        _loads += 1
-    _SKIPPING.depth = getattr(_SKIPPING, "depth", 0) + 1
-    try:
-        with torch.random.fork_rng(devices=[]):
-            yield
-    finally:
-        _SKIPPING.depth -= 1
-        with _INIT_LOCK:
-            _loads -= 1
-            if _loads == 0:
-                for name, fill in _REPLACED.items():
-                    setattr(nn.init, name, fill)
-                _REPLACED.clear()
-
-
-def _skipped_while_loading(fill: Callable) -> Callable:
-    def fill_unless_loading(tensor: torch.Tensor, *args: Any, **kwargs: Any) -> torch.Tensor:
-        return tensor if getattr(_SKIPPING, "depth", 0) else fill(tensor, *args, **kwargs)
-    return fill_unless_loading
+def _left_empty(model: nn.Module) -> list[str]:
+    """Names of the parameters and buffers still on the meta device (none once a file has set them)."""
+    return [name for name, t in [*model.named_parameters(), *model.named_buffers()] if t.is_meta]
 
 
 def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]]:
-    """Load a safetensors file into ``model`` one top-level part at a time (the speech model's three
+    """Load a safetensors file into ``model`` (built on the meta device: the file's tensors, cast to the
+    model's types, become its parameters and buffers) one top-level part at a time (the speech model's three
     encoders one after another), so that loading holds the model plus one part, not the model twice:
     loading the paper speech model peaked at 2.1 GiB instead of 2.8. Returns the keys missing from the
     file and those it has that the model lacks; a corrupt file or one that does not fit is an
     :class:`InputFileError`. The model is still on the CPU here (``load_model`` moves it afterwards), so
     a device's own errors (a GPU out of memory, a missing ``cuda:N``) are never read as a bad file."""
     parts: dict[str, list[str]] = {}
+    dtypes = {k: v.dtype for k, v in model.state_dict().items()}
     missing: set[str] | None = None
     unexpected: list[str] = []
     try:
@@ -356,7 +338,9 @@ def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]
                 if _file_stamp(weights) != stamp:
                     raise InputFileError(weights, "changed while it was being loaded (saved again?); load it again")
                 part = {k: f.get_tensor(k) for k in keys}
-            absent, extra = model.load_state_dict(part, strict=False)
+            # the tensors become the model's own (assign): cast to its types (float16 files to float32)
+            part = {k: t.to(dtypes[k]) if k in dtypes else t for k, t in part.items()}
+            absent, extra = model.load_state_dict(part, strict=False, assign=True)
             del part
             missing = set(absent) if missing is None else missing & set(absent)
             unexpected += extra
@@ -376,11 +360,11 @@ def _file_stamp(path: Path) -> tuple[int, int, int]:
 
 
 def trained_splits(loaded: LoadedModel) -> list[str]:
-    """The cache splits a model's weights were fitted on: stored in its file (``extra.train_splits``);
+    """The cache splits a model's weights were fitted on: stored in its file (``metadata.train_splits``);
     for files written before that was stored, a speech model's ``run.json``, and ``train`` for gesture
     models and extractors (which only ever trained on it)."""
-    if "train_splits" in loaded.extra:
-        return list(loaded.extra["train_splits"])
+    if loaded.metadata.train_splits is not None:
+        return list(loaded.metadata.train_splits)
     if loaded.meta.get("kind") in ("gesture", "extractor"):
         return ["train"]
     try:
@@ -405,7 +389,7 @@ def calibration_splits(loaded: LoadedModel) -> dict[str, str]:
     held out for numbers of this model): e.g. ``{"residual_calibration": "val"}``."""
     found = {}
     for key in ("residual_calibration", "emotion_perception"):
-        blob = loaded.extra.get(key)
+        blob = getattr(loaded.metadata, key, None)
         if isinstance(blob, dict):
             split = blob.get("split", (blob.get("info") or {}).get("split"))
             if split:

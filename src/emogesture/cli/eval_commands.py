@@ -144,29 +144,14 @@ def run_motion_stats(args: argparse.Namespace) -> int:
     import json
 
     from emogesture.errors import EmogestureError
-    from emogesture.eval.motion_stats import file_statistics, motion_stats_markdown, npz_files
+    from emogesture.eval.motion_stats import file_statistics, motion_stats_markdown, named_sources
     from emogesture.fileio import atomic_output, check_output
 
     if args.every < 1:
         raise EmogestureError(f"--every {args.every}: must be at least 1")
     if args.json is not None:
         check_output(args.json, args.overwrite)
-    sources: dict[str, list[Path]] = {}
-    loose: list[Path] = []
-    for item in args.sources:
-        name, sep, path = item.partition("=")
-        if not sep:
-            name, path = "", item
-        files = npz_files(path)
-        if not name and Path(path).is_file():
-            loose += files
-            continue
-        name = name or Path(path).name
-        if name in sources:
-            raise EmogestureError(f"{item!r}: the name {name!r} is given twice; name sources with NAME=SOURCE")
-        sources[name] = files
-    if loose:
-        sources["npz files"] = loose
+    sources = named_sources(args.sources)
     results = {name: file_statistics(files, args.every, progress=True) for name, files in sources.items()}
     print(motion_stats_markdown(results), end="")
     if args.json is not None:
@@ -193,8 +178,9 @@ def run_model_info_bundled(args: argparse.Namespace) -> int:
             continue
         m = load_model(BUNDLED_MODEL / f"{kind}.json", kind)
         params = sum(p.numel() for p in m.model.parameters())
-        print(f"{kind:<10} {params:>10,} parameters, trained {m.extra.get('step', '?')} steps"
-              + (f" on {'+'.join(m.extra['train_splits'])}" if "train_splits" in m.extra else ""))
+        step, splits = m.metadata.step, m.metadata.train_splits
+        print(f"{kind:<10} {params:>10,} parameters, trained {'?' if step is None else step} steps"
+              + (f" on {'+'.join(splits)}" if splits is not None else ""))
     card = BUNDLED_MODEL / "card.json"
     if card.is_file():
         numbers = json.loads(card.read_text())

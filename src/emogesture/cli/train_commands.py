@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from emogesture.config import load_config, to_dict
 
 
 def _engine_args(p: argparse.ArgumentParser) -> None:
@@ -88,39 +87,42 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_bundle)
 
 
-def run_train_speech(args: argparse.Namespace) -> int:
-    from emogesture.train.speech import SpeechTrainConfig, build
+def _options(args: argparse.Namespace):
+    from emogesture.train.runs import RunOptions
 
-    base = to_dict(SpeechTrainConfig.preset(args.preset, args.losses))
-    config = load_config(SpeechTrainConfig, args.config, args.overrides, base=base)
-    if args.init_from is not None:
-        config.init_from = str(args.init_from.resolve())
-    return _run(args, "train speech", config, build, "speech model")
+    return RunOptions(steps=args.steps, devices=args.devices, accelerator=args.accelerator, precision=args.precision,
+                      checkpoint_every=args.checkpoint_every, log_every=args.log_every, seed=args.seed,
+                      overwrite=args.overwrite, progress=not args.quiet)
+
+
+def _report(what: str, run) -> int:
+    if run.exported:
+        print(f"{what}: {run.model} (step {run.step})")
+    return 0
+
+
+def run_train_speech(args: argparse.Namespace) -> int:
+    from emogesture.train.runs import train_speech
+
+    return _report("speech model", train_speech(args.data, args.out, preset=args.preset, losses=args.losses,
+                                                config_file=args.config, overrides=args.overrides,
+                                                init_from=args.init_from, options=_options(args)))
 
 
 def run_train_extractor(args: argparse.Namespace) -> int:
-    from emogesture.train.extractor import ExtractorTrainConfig, build
+    from emogesture.train.runs import train_extractor
 
-    base = to_dict(ExtractorTrainConfig.preset(args.preset))
-    config = load_config(ExtractorTrainConfig, args.config, args.overrides, base=base)
-    return _run(args, "train extractor", config, build, "motion feature extractor")
+    return _report("motion feature extractor", train_extractor(args.data, args.out, preset=args.preset,
+                                                               config_file=args.config, overrides=args.overrides,
+                                                               options=_options(args)))
 
 
 def run_train_gesture(args: argparse.Namespace) -> int:
-    from emogesture.errors import EmogestureError
-    from emogesture.train.gesture import GestureTrainConfig, build
+    from emogesture.train.runs import train_gesture
 
-    if args.variant != "no_audio" and args.speech is None:
-        raise EmogestureError("--speech RUN is needed (a trained speech model), except for --variant no_audio")
-    base = to_dict(GestureTrainConfig.preset(args.preset, args.variant))
-    config = load_config(GestureTrainConfig, args.config, args.overrides, base=base)
-    from emogesture.runtime import process_device
-
-    # the speech model that encodes the windows' latents (once; later runs and the other DDP processes read
-    # them from the cache) is loaded where this process trains
-    device = process_device(args.accelerator)
-    return _run(args, "train gesture", config, lambda c, d, s: build(c, d, s, args.speech, device), "gesture model",
-                {"speech": str(args.speech.resolve()) if args.speech else None})
+    return _report("gesture model", train_gesture(args.data, args.out, speech=args.speech, preset=args.preset,
+                                                  variant=args.variant, config_file=args.config,
+                                                  overrides=args.overrides, options=_options(args)))
 
 
 def run_calibrate_gesture(args: argparse.Namespace) -> int:
@@ -150,34 +152,4 @@ def run_bundle(args: argparse.Namespace) -> int:
                         generation=args.generation)
     for path in sorted(out.iterdir()):
         print(f"{path}  ({path.stat().st_size / 1e6:.2f} MB)")
-    return 0
-
-
-def _run(args: argparse.Namespace, command: str, config, build, what: str, more: dict | None = None) -> int:
-    from emogesture.train.engine import RunSettings, check_run_dir, fit, make_trainer
-
-    precision = {"fp32": "32-true", "bf16": "bf16-mixed"}.get(args.precision, args.precision)
-    accelerator = {"cuda": "gpu"}.get(args.accelerator, args.accelerator)
-    from emogesture.errors import EmogestureError
-
-    if args.devices < 1:
-        raise EmogestureError(f"--devices {args.devices}: at least 1")
-    if accelerator == "gpu":
-        import torch
-
-        if not torch.cuda.is_available():
-            raise EmogestureError(f"--device {args.accelerator}: no CUDA GPU is visible to torch; use --device cpu")
-        if args.devices > (count := torch.cuda.device_count()):
-            raise EmogestureError(f"--devices {args.devices}: torch sees {count} GPU(s)")
-    settings = RunSettings(max_steps=args.steps, devices=args.devices, accelerator=accelerator,
-                           precision=precision, checkpoint_every=args.checkpoint_every,
-                           log_every=args.log_every, progress=not args.quiet, seed=args.seed)
-    blob = {"command": command, "config": to_dict(config), "data": str(args.data.resolve()),
-            "seed": args.seed, "precision": precision, **(more or {})}
-    resume = check_run_dir(args.out, blob, args.overwrite)
-    data, module, export = build(config, args.data, args.seed)
-    trainer = make_trainer(args.out, settings, lambda m: export(m, args.out))
-    fit(trainer, module, data, args.out, resume)
-    if trainer.is_global_zero:
-        print(f"{what}: {args.out / 'model.json'} (step {trainer.global_step})")
     return 0

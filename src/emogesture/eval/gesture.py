@@ -50,11 +50,11 @@ class GestureEvaluator:
         self.cache, self.split, self.extractor, self.fps = cache, split, extractor, fps
         self.windows: SplitWindows = cache.split(split)
         self.spec = from_dict(MotionFeatureSpec, cache.manifest["config"]["features"])
-        stored = extractor.extra.get("features")
+        stored = extractor.metadata.features
         if stored is not None and from_dict(MotionFeatureSpec, stored) != self.spec:
             raise EmogestureError(f"{extractor.path}: the extractor was trained on other motion features than {cache.root}")
-        self.mean = torch.tensor(extractor.extra["motion_mean"], dtype=torch.float32)
-        self.std = torch.tensor(extractor.extra["motion_std"], dtype=torch.float32)
+        self.mean = torch.tensor(extractor.metadata.require("motion_mean", extractor.path), dtype=torch.float32)
+        self.std = torch.tensor(extractor.metadata.require("motion_std", extractor.path), dtype=torch.float32)
         self.body = SkeletonBody()
         self.onsets, self.envelopes = self._window_onsets()
         self.rhythm_audio = None  # (own [W, T], mismatched name -> [W, T]) onset envelopes

@@ -199,7 +199,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
     for name, run in models.items():
         gesture = load_model(run, "gesture")
         loaded[name] = gesture
-        variant = gesture.extra.get("variant", gesture.config.variant)
+        variant = gesture.metadata.variant or gesture.config.variant
         speech = None if variant == "no_audio" else SpeechLatentEncoder.of_gesture_model(gesture)
         parts[name] = gesture
         if speech is not None:
@@ -223,7 +223,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
             sources[f"{name}, timing stream of another window"] = generate_from_conditions(
                 gesture, [*conds[:-1], conds[-1][other]], seeds)
         if name == edit_model:
-            known = [EMOTIONS.index(k) for k in gesture.extra.get("emotion_latent_means", {})]
+            known = [EMOTIONS.index(k) for k in gesture.metadata.emotion_latent_means or {}]
             targets = edit_targets(windows.emotion, seed, known)
             edited = generate_from_conditions(gesture, emotion_label_edit(gesture, conds, targets), seeds)
             sources[f"{name}, emotion edit"] = (edited, targets)
@@ -249,7 +249,7 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         long["every_take"] = whole_take_seams(pipe, cache, split, seed, long["hop_seconds"])
     result = {
         "split": split, "models": {k: str(v) for k, v in models.items()}, "ours": main, "edit_model": edit_model,
-        "steps": {k: g.extra.get("step") for k, g in loaded.items()},
+        "steps": {k: g.metadata.step for k, g in loaded.items()},
         "variants": {k: g.config.variant for k, g in loaded.items()},
         "table": table, "prior_reconstruction": recon, "long_audio": long, "emotion_auto_trust": auto_trust,
     }

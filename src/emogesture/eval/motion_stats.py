@@ -43,7 +43,7 @@ import numpy as np
 import torch
 
 from emogesture.audio import onset_strength
-from emogesture.errors import InputFileError
+from emogesture.errors import EmogestureError, InputFileError
 from emogesture.eval.rhythm import arm_speed, envelope_at_frames, rhythm_score, smooth
 from emogesture.motion.rotations import axis_angle_to_matrix
 from emogesture.motion.skeleton import JOINT_NAMES
@@ -327,6 +327,29 @@ def npz_files(path: str | PathLike[str]) -> list[Path]:
     if not files:
         raise InputFileError(folder, "holds no .npz motion files")
     return files
+
+
+def named_sources(items: Sequence[str]) -> dict[str, list[Path]]:
+    """``NAME=SOURCE`` or bare ``SOURCE`` items (each a ``.npz``, a folder of them or a BEAT2 root) -> the
+    motion files of each named source, in order. A bare folder is named after itself; bare files are pooled
+    as ``"npz files"``. A name given twice is a one-line error."""
+    sources: dict[str, list[Path]] = {}
+    loose: list[Path] = []
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep:
+            name, path = "", item
+        files = npz_files(path)
+        if not name and Path(path).is_file():
+            loose += files
+            continue
+        name = name or Path(path).name
+        if name in sources:
+            raise EmogestureError(f"{item!r}: the name {name!r} is given twice; name sources with NAME=SOURCE")
+        sources[name] = files
+    if loose:
+        sources["npz files"] = loose
+    return sources
 
 
 def speech_of(motion_file: str | PathLike[str]) -> Path | None:

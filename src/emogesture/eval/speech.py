@@ -175,7 +175,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     use = content_use(encoder, test, seed)
     result = {
         "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test), "split_use": split_info,
-        "step": encoder.loaded.extra.get("step"),
+        "step": encoder.loaded.metadata.step,
         "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"],
         "SA": spk_rep["accuracy"], "SF1": spk_rep["macro_f1"], "speaker_windows": int(known.sum()),
         "reconstruction_l1": recon,

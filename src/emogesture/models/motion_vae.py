@@ -159,8 +159,8 @@ def dct_basis(n: int, count: int) -> torch.Tensor:
     float64 with another operation order: rescaled, it differs from this one in the last float32 bits (up
     to about 1e-5 at 300 frames). Models are trained and generate with these exact values, so each keeps
     its own."""
-    j = torch.arange(n, dtype=torch.float32)[:, None] + 0.5
-    return torch.cos(torch.pi * j * torch.arange(count) / n)
+    j = torch.arange(n, dtype=torch.float32, device="cpu")[:, None] + 0.5  # on the CPU even while a model
+    return torch.cos(torch.pi * j * torch.arange(count, device="cpu") / n)  # is built on the meta device
 
 
 class MotionVAE(nn.Module):
@@ -198,7 +198,8 @@ class MotionVAE(nn.Module):
             self.dct_basis = self.low_frequency_mu = self.low_frequency_out = None
         if c.detail_path:  # the detail path (frames_per_token is 1 here)
             self.register_buffer("detail_basis", dct_basis(c.frames, c.detail_path), persistent=False)
-            self.register_buffer("detail_index", torch.tensor(c.detail_columns, dtype=torch.long), persistent=False)
+            self.register_buffer("detail_index", torch.tensor(c.detail_columns, dtype=torch.long, device="cpu"),
+                                 persistent=False)
             self.detail_mu = nn.Linear(c.detail_path * len(c.detail_columns), c.latent_dim)
             self.detail_out = nn.Linear(c.latent_dim, c.detail_path * len(c.detail_columns))
             nn.init.zeros_(self.detail_out.weight)

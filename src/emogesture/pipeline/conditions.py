@@ -66,7 +66,7 @@ def model_conditions(gesture: LoadedModel, cache: WindowsCache, split: str,
 
 def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
     """Replace each window's emotion latent by the stored mean latent of its target label ``labels [W]``."""
-    means = gesture.extra.get("emotion_latent_means")
+    means = gesture.metadata.emotion_latent_means
     if not means or len(conditions) < 3:
         raise EmogestureError(f"{gesture.path}: this model has no emotion latents to edit")
     missing = sorted({EMOTIONS[k] for k in labels.tolist()} - set(means))
@@ -84,7 +84,9 @@ def window_seeds(seed: int, count: int) -> list[int]:
 
 def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
     """The model's per-feature motion mean and std (raw features <-> the prior's normalised ones)."""
-    return (np.asarray(gesture.extra["motion_mean"], np.float32), np.asarray(gesture.extra["motion_std"], np.float32))
+    meta = gesture.metadata
+    return (np.asarray(meta.require("motion_mean", gesture.path), np.float32),
+            np.asarray(meta.require("motion_std", gesture.path), np.float32))
 
 
 def evaluating(model: nn.Module) -> nn.Module:
@@ -177,7 +179,7 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     smoothing, cutoff = settings.output_smoothing, settings.output_lowpass_hz
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
     if guided:
-        spec = from_dict(MotionFeatureSpec, gesture.extra["features"])
+        spec = from_dict(MotionFeatureSpec, gesture.metadata.require("features", gesture.path))
     m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
     out = np.empty((len(z), frames, vae.feature_dim), np.float32)  # filled batch by batch, denormalised
     with bf16_weights(precision, model.prior):

@@ -72,14 +72,14 @@ class GesturePipeline:
         self.speech = speech
         self.device = device
         self.precision = resolve_precision(precision, device)
-        extra = gesture.extra
-        if extra.get("variant") == "no_audio":
+        meta = gesture.metadata
+        if meta.variant == "no_audio":
             raise EmogestureError(f"{gesture.path}: the no_audio ablation has no speech latents to edit or generate "
                                   "from in this pipeline")
-        self.mean = np.asarray(extra["motion_mean"], np.float32)
-        self.std = np.asarray(extra["motion_std"], np.float32)
-        self.spec = from_dict(MotionFeatureSpec, extra["features"])
-        self.fps = int(extra.get("fps", 30))
+        self.mean = np.asarray(meta.require("motion_mean", gesture.path), np.float32)
+        self.std = np.asarray(meta.require("motion_std", gesture.path), np.float32)
+        self.spec = from_dict(MotionFeatureSpec, meta.require("features", gesture.path))
+        self.fps = meta.fps or 30
         #: how this pipeline generates unless a call says otherwise: the model's stored settings
         self.generation = gesture.generation or GenerationConfig()
         self.body = SkeletonBody()  # joint positions for choosing seam candidates
@@ -98,7 +98,7 @@ class GesturePipeline:
             speech = SpeechLatentEncoder.from_run(speech_run, device, precision)
         else:
             speech = SpeechLatentEncoder.of_gesture_model(gesture, device, precision)
-        want = gesture.extra.get("speech_weights_sha256")
+        want = gesture.metadata.speech_weights_sha256
         if want and speech.loaded.meta["weights_sha256"] != want:
             raise InputFileError(speech.loaded.path, "is not the speech model this gesture model was trained with")
         pipe = cls(gesture, speech, device, precision)
@@ -161,7 +161,7 @@ class GesturePipeline:
             if edit.emotion_from is not None:
                 target = edit.emotion_from[np.arange(n) % len(edit.emotion_from)]
             elif edit.emotion_label is not None:
-                means = self.loaded.extra.get("emotion_latent_means", {})
+                means = self.loaded.metadata.emotion_latent_means or {}
                 if edit.emotion_label not in means:
                     raise EmogestureError(f"unknown emotion {edit.emotion_label!r}; known: {', '.join(means)}")
                 target = np.broadcast_to(np.asarray(means[edit.emotion_label], np.float32), e.shape)

@@ -4,7 +4,7 @@ latent can be trusted there.
 The speech model learns emotion from the training voices only. On a voice unlike them (a real
 recording, another synthesiser, a telephone line, noise) its emotion latent can say an emotion nobody
 spoke, and the gesture model would animate it. So a speech model carries, in its
-``extra["emotion_perception"]``, where its latents lie on training speech, for two latents:
+``metadata.emotion_perception``, where its latents lie on training speech, for two latents:
 
 - the **emotion** latent around the mean latent of each emotion, and the **style** latent (the voice)
   around the mean latent of each training speaker;
@@ -160,7 +160,7 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
 
 
 def perception_of(encoder: SpeechLatentEncoder) -> EmotionPerception | None:
-    stored = encoder.loaded.extra.get("emotion_perception")
+    stored = encoder.loaded.metadata.emotion_perception
     return EmotionPerception.from_dict(stored) if stored else None
 
 
@@ -273,6 +273,6 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     windows = cache.split("train")
     perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile)
     perception.info.update(split=split, trained_on=trained_on)
-    extra = {**loaded.extra, "train_splits": trained_on, "emotion_perception": perception.to_dict()}
-    save_model(out, "speech", loaded.model, loaded.config, extra)
+    metadata = loaded.metadata.replace(train_splits=trained_on, emotion_perception=perception.to_dict())
+    save_model(out, "speech", loaded.model, loaded.config, metadata)
     return perception

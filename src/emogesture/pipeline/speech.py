@@ -61,9 +61,10 @@ class SpeechLatentEncoder:
         self.model = loaded.model.to(device).eval()
         self.device = device
         self.precision = resolve_precision(precision, device)
-        self.fbank_mean = float(loaded.extra["fbank_mean"])
-        self.fbank_std = float(loaded.extra["fbank_std"])
-        prep = loaded.extra.get("prepare_config", {})
+        meta = loaded.metadata
+        self.fbank_mean = float(meta.require("fbank_mean", loaded.path))
+        self.fbank_std = float(meta.require("fbank_std", loaded.path))
+        prep = meta.prepare_config or {}
         self.fbank_config = from_dict(FbankConfig, prep["fbank"]) if "fbank" in prep else FbankConfig()
         self.recording_norm = prep.get("recording_norm", "none")
         self.window_frames = loaded.config.encoder.input_frames
@@ -83,14 +84,14 @@ class SpeechLatentEncoder:
         model's folder (as in the bundled model)."""
         from emogesture.errors import InputFileError
 
-        name = gesture.extra.get("speech_model")
+        name = gesture.metadata.speech_model
         if name is None:
             raise InputFileError(gesture.path, "names no speech model; pass one")
         return cls.from_run(Path(gesture.path).parent / name, device, precision)
 
     @property
     def speakers(self) -> list[int]:
-        return list(self.loaded.extra["speakers"])
+        return list(self.loaded.metadata.require("speakers", self.loaded.path))
 
     @property
     def batch_size(self) -> int:

@@ -125,7 +125,10 @@ class AveragedWeightsMixin:
 
 def checkpoint_step(path: Path) -> int:
     """The global step stored in a Lightning checkpoint (read without unpickling objects)."""
-    return int(torch.load(path, map_location="cpu", weights_only=True)["global_step"])
+    # runs of before 2026-11-26 stored the extractor's learning rate as a numpy float (a plain number,
+    # allowed here; nothing else is unpickled)
+    with torch.serialization.safe_globals([np.float64(0).__reduce__()[0], np.dtype, type(np.dtype(np.float64))]):
+        return int(torch.load(path, map_location="cpu", weights_only=True)["global_step"])
 
 
 @dataclass

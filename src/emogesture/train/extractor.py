@@ -3,6 +3,7 @@ of motion windows."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.datasets import WindowDataset
 from emogesture.models.extractor import ExtractorConfig, MotionFeatureExtractor
+from emogesture.models.metadata import ExtractorMetadata
 from emogesture.train.engine import step_generator
 
 
@@ -74,7 +76,7 @@ class ExtractorModule(L.LightningModule):
     def configure_optimizers(self):
         opt = torch.optim.AdamW(self.model.parameters(), lr=self.cfg.lr, weight_decay=self.cfg.weight_decay)
         total = max(1, self.trainer.max_steps)
-        sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: 0.5 * (1 + np.cos(np.pi * min(s, total) / total)))
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, total) / total)))
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
 
 
@@ -86,9 +88,9 @@ def build(config: ExtractorTrainConfig, cache_dir: Path, seed: int):
     module = ExtractorModule(to_dict(config), stats["motion_mean"], stats["motion_std"], seed)
 
     def export(m: ExtractorModule, run_dir: Path) -> None:
-        extra = {"emotions": list(EMOTIONS), "motion_mean": stats["motion_mean"], "motion_std": stats["motion_std"],
-                 "features": data.cache.manifest["config"]["features"], "step": m.global_step,
-                 "train_splits": ["train"]}
-        save_model(run_dir, "extractor", m.model, m.cfg.model, extra)
+        metadata = ExtractorMetadata(emotions=list(EMOTIONS), motion_mean=stats["motion_mean"],
+                                     motion_std=stats["motion_std"], features=data.cache.manifest["config"]["features"],
+                                     step=m.global_step, train_splits=["train"])
+        save_model(run_dir, "extractor", m.model, m.cfg.model, metadata)
 
     return data, module, export

@@ -32,6 +32,7 @@ from emogesture.diffusion.sampling import add_noise, ddim_sample, draw_noise, sa
 from emogesture.diffusion.schedulers import make_ddim_scheduler, make_ddpm_scheduler
 from emogesture.errors import ConfigError
 from emogesture.models.generation import GenerationConfig
+from emogesture.models.metadata import GestureMetadata
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.motion.skeleton import FINGER_JOINTS, WRIST_JOINTS
@@ -327,14 +328,15 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
                              config.batch_size, seed, config.num_workers)
     features = cache.manifest["config"]["features"]
     module = GestureModule(to_dict(config), mean.tolist(), std.tolist(), features, seed)
-    extra = {"emotions": list(EMOTIONS), "motion_mean": mean.tolist(), "motion_std": std.tolist(),
-             "features": features, "variant": variant, "fps": 30, "train_splits": ["train"]}
+    metadata = GestureMetadata(emotions=list(EMOTIONS), motion_mean=mean.tolist(), motion_std=std.tolist(),
+                               features=features, variant=variant, fps=30, train_splits=["train"])
     if speech is not None:
         enc_e = conds[1]
-        extra["speech_model"] = str(Path(speech.loaded.path).resolve())
-        extra["speech_weights_sha256"] = speech.loaded.meta["weights_sha256"]
-        extra["emotion_latent_means"] = {
-            EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist() for k in sorted(set(train.emotion.tolist()))}
+        metadata = metadata.replace(
+            speech_model=str(Path(speech.loaded.path).resolve()),
+            speech_weights_sha256=speech.loaded.meta["weights_sha256"],
+            emotion_latent_means={EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist()
+                                  for k in sorted(set(train.emotion.tolist()))})
 
     # residual-noise calibration on the held-out validation windows, once, when training ends
     calibration = None
@@ -351,15 +353,15 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
                   "without residual noise (`emogesture calibrate gesture` can add it later)", file=sys.stderr)
 
     def export(m: GestureModule, run_dir: Path) -> None:
-        done = {**extra, "step": m.global_step}
+        done = metadata.replace(step=m.global_step)
         # measured afresh at every export of the last step: the checkpoint of that step is saved before
         # the weight average takes its last update, and the export when training ends comes after it
         if calibration is not None and m.global_step >= (m.trainer.max_steps or 0) > 0:
             was_training = m.averaged.training
-            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, extra, {}, run_dir, m.cfg.generation),
+            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, done, {}, run_dir, m.cfg.generation),
                                        *calibration, seed=seed)
             m.averaged.train(was_training)
-            done["residual_calibration"] = {**stats, "step": m.global_step, "split": "val"}
+            done = done.replace(residual_calibration={**stats, "step": m.global_step, "split": "val"})
         save_model(run_dir, "gesture", m.averaged, m.cfg.model, done, generation=m.cfg.generation)
 
     return data, module, export
@@ -382,7 +384,7 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     refuse_trained_split(split, gesture, *([speech.loaded] if speech is not None else []), purpose="calibrate")
     windows = cache.split(split)
     stats = calibrate_residual(gesture, model_conditions(gesture, cache, split, speech), windows.motion, seed=seed)
-    stats.update(step=gesture.extra.get("step"), split=split)
-    save_model(out, "gesture", gesture.model, gesture.config, {**gesture.extra, "residual_calibration": stats},
+    stats.update(step=gesture.metadata.step, split=split)
+    save_model(out, "gesture", gesture.model, gesture.config, gesture.metadata.replace(residual_calibration=stats),
                generation=replace(gesture.generation, residual_scale=float(scale)))
     return stats

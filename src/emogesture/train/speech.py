@@ -18,6 +18,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
 from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
 from emogesture.errors import ConfigError
+from emogesture.models.metadata import SpeechMetadata
 from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
@@ -164,17 +165,11 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
 
 
-def speech_model_extra(cache, speakers: list[int], step: int, train_splits: list[str]) -> dict:
+def speech_model_metadata(cache, speakers: list[int], step: int, train_splits: list[str]) -> SpeechMetadata:
     """What a speech model file carries besides weights: label tables and fbank statistics."""
-    return {
-        "emotions": list(EMOTIONS),
-        "speakers": speakers,
-        "fbank_mean": cache.stats["fbank_mean"],
-        "fbank_std": cache.stats["fbank_std"],
-        "prepare_config": cache.manifest["config"],
-        "train_splits": list(train_splits),
-        "step": step,
-    }
+    return SpeechMetadata(emotions=list(EMOTIONS), speakers=speakers, fbank_mean=cache.stats["fbank_mean"],
+                          fbank_std=cache.stats["fbank_std"], prepare_config=cache.manifest["config"],
+                          train_splits=list(train_splits), step=step)
 
 
 def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
@@ -196,7 +191,7 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     module = SpeechModule(to_dict(config), seed)
 
     def export(m: SpeechModule, run_dir: Path) -> None:
-        extra = speech_model_extra(data.cache, data.speakers, m.global_step, config.train_splits)
-        save_model(run_dir, "speech", m.averaged, m.cfg.model, extra)
+        metadata = speech_model_metadata(data.cache, data.speakers, m.global_step, config.train_splits)
+        save_model(run_dir, "speech", m.averaged, m.cfg.model, metadata)
 
     return data, module, export
