@@ -12,12 +12,14 @@ EMOTION_HELP = ("auto (default: the speech's own emotion, blended toward neutral
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("generate", help="animate a speech recording (npz, bvh, mp4)",
-                       description="Animate SPEECH with the bundled model (or --model). Emotion and speaker style "
-                       "can come from other recordings, or the emotion from a label. Writes "
+    p = sub.add_parser("generate", help="animate speech recordings (npz, bvh, mp4)",
+                       description="Animate each SPEECH with the bundled model (or --model), loaded once. Emotion and "
+                       "speaker style can come from other recordings, or the emotion from a label. Writes "
                        "<speech>[_edit]_seed<seed>_<sample>.{npz,bvh,mp4} and <speech>[_edit]_seed<seed>_perception.json "
-                       "into --out; existing files are never replaced without --overwrite.")
-    p.add_argument("speech", type=Path, help="speech audio (wav, flac, ogg, mp3; any rate)")
+                       "into --out; existing files are never replaced without --overwrite. A recording that fails "
+                       "prints its error and the others go on (exit status 2 if any failed).")
+    p.add_argument("speech", type=Path, nargs="+",
+                   help="speech audio files (wav, flac, ogg, mp3, ...; any rate) and folders of them")
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
     p.add_argument("--model", type=Path, help="run folder of `emogesture train gesture` (default: the bundled model)")
     p.add_argument("--speech-model", type=Path, help="speech model run (default: the one the model names)")
@@ -41,6 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-acceleration", action="store_true",
                    help="plain torch only: no oneDNN private ops or blocked attention (also EMOGESTURE_ACCELERATION=0)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    p.add_argument("--skip-existing", action="store_true",
+                   help="leave existing outputs as they are and write only the missing ones (resumes a batch)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run_generate)
 
@@ -56,22 +60,36 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_generate(args: argparse.Namespace) -> int:
-    from emogesture.pipeline.animate import AnimationRequest, animate
+    from emogesture.pipeline.animate import AnimationRequest
+    from emogesture.pipeline.batch import animate_files, batch_summary, speech_files
     from emogesture.pipeline.generate import GesturePipeline
     from emogesture.runtime import resolve_device, set_acceleration
 
-    request = AnimationRequest(args.speech, args.out, emotion=args.emotion or "auto",
-                               emotion_weight=args.emotion_weight, emotion_from=args.emotion_from,
-                               style_from=args.style_from, formats=args.format, seed=args.seed, samples=args.samples,
-                               seam_candidates=args.seam_candidates, overwrite=args.overwrite)
+    template = AnimationRequest(args.speech[0], args.out, emotion=args.emotion or "auto",
+                                emotion_weight=args.emotion_weight, emotion_from=args.emotion_from,
+                                style_from=args.style_from, formats=args.format, seed=args.seed, samples=args.samples,
+                                seam_candidates=args.seam_candidates, overwrite=args.overwrite,
+                                skip_existing=args.skip_existing)
+    speeches = speech_files(args.speech)
     if args.no_acceleration:
         set_acceleration(False)
     device = resolve_device(args.device)
     pipe = GesturePipeline.from_run(args.model, args.speech_model, device=device, precision=args.precision)
-    result = animate(pipe, request, progress=not args.quiet and sys.stderr.isatty(), report=print,
-                     written=lambda path, seq: print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)"))
-    print(result.perception_path)
-    return 0
+    items = animate_files(pipe, speeches, template, progress=not args.quiet and sys.stderr.isatty(), report=print,
+                          written=lambda path, seq: print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)"),
+                          finished=_finished)
+    if len(items) > 1:
+        print(batch_summary(items))
+    return 2 if any(item.error for item in items) else 0
+
+
+def _finished(item) -> None:
+    if item.error is not None:
+        print(f"emogesture generate: error: {item.error}", file=sys.stderr)
+    elif item.skipped:
+        print(f"{item.speech}: every output already exists (skipped)")
+    else:
+        print(item.result.perception_path)
 
 
 def run_export(args: argparse.Namespace) -> int:

@@ -71,6 +71,10 @@ class AnimationRequest:
     samples: int = 1
     seam_candidates: int | None = None
     overwrite: bool = False
+    #: leave outputs that exist as they are and write only the missing ones (nothing at all when every
+    #: output exists): how an interrupted batch resumes; generation is reproducible, so they are the files
+    #: an uninterrupted run writes
+    skip_existing: bool = False
     mode: str = field(init=False, default="auto")  # auto / own, from ``emotion``
     label: str | None = field(init=False, default=None)  # the label edited toward, from ``emotion``
     weight: float = field(init=False, default=1.0)  # ``emotion_weight`` with None read as 1
@@ -102,6 +106,8 @@ class AnimationRequest:
             raise EmogestureError("--seam-candidates must be at least 1")
         if self.out.exists() and not self.out.is_dir():
             raise EmogestureError(f"{self.out}: is a file; --out must be a folder")
+        if self.overwrite and self.skip_existing:
+            raise EmogestureError("--overwrite and --skip-existing: choose one")
 
     @property
     def edited(self) -> bool:
@@ -119,6 +125,10 @@ class AnimationRequest:
         if self.style_from:
             tag += f"_style-{self.style_from.stem}"
         return tag + ("_own" if self.mode == "own" else "")
+
+    def outputs(self) -> list[Path]:
+        """Every file this request writes: each sample's files in format order, then the perception report."""
+        return [p for stem in self.stems() for p in export_paths(stem, self.formats).values()] + [self.perception_path]
 
     def stems(self) -> list[Path]:
         """``out/<speech><tag>_seed<seed>_<k>`` for each sample ``k`` (no extension)."""
@@ -150,6 +160,8 @@ class AnimationResult:
     perceived: list[PerceivedEmotion]
     summaries: list[str]
     sequences: list[SMPLXSequence]
+    #: True when ``skip_existing`` found every output in place (nothing was computed or written)
+    skipped: bool = False
 
 
 def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool = False,
@@ -157,7 +169,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
             written: Callable[[Path, SMPLXSequence], None] | None = None) -> AnimationResult:
     """Animate ``request.speech`` with ``pipe`` and write every output of ``request``.
 
-    Reads the speech and the edit recordings, refuses existing outputs (unless ``request.overwrite``)
+    Reads the speech and the edit recordings, refuses existing outputs (unless ``request.overwrite``; with
+    ``request.skip_existing`` they are left as they are, and nothing is computed when all exist)
     before computing anything, encodes the speech, perceives its emotion (and that of the
     ``emotion_from`` recording, whose emotion is blended like the speech's under ``auto``), draws the
     samples, exports each, and writes the perception report as a JSON list, whole or not at all.
@@ -170,10 +183,17 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
     edit = EditRequest(emotion_weight=request.weight, emotion_label=request.label) if request.edited else None
     stems, perception_path = request.stems(), request.perception_path
-    for stem in stems:
-        for path in export_paths(stem, request.formats).values():
-            check_output(path, request.overwrite)
-    check_output(perception_path, request.overwrite)
+    if request.skip_existing:  # a format is written for a sample where its file is missing
+        formats = [tuple(f for f, path in export_paths(stem, request.formats).items() if not path.exists())
+                   for stem in stems]
+        if not any(formats) and perception_path.exists():
+            return AnimationResult([[] for _ in stems], perception_path, [], [], [], skipped=True)
+    else:
+        formats = [request.formats] * len(stems)
+        for stem in stems:
+            for path in export_paths(stem, request.formats).values():
+                check_output(path, request.overwrite)
+        check_output(perception_path, request.overwrite)
 
     settings = pipe.settings(seam_candidates=request.seam_candidates)
     with tqdm(total=len(window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, settings.hop_seconds)),
@@ -201,9 +221,10 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     files = []
     for k, (seq, stem) in enumerate(zip(sequences, stems)):
         done = None if written is None else (lambda path, seq=seq: written(path, seq))
-        files.append(export_sequence(seq, stem, request.formats, audio=(wave, TARGET_SAMPLE_RATE),
+        files.append(export_sequence(seq, stem, formats[k], audio=(wave, TARGET_SAMPLE_RATE),
                                      label=request.video_label(k), overwrite=request.overwrite, progress=progress,
-                                     written=done))
-    with atomic_output(perception_path, request.overwrite) as tmp:
-        tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
+                                     written=done) if formats[k] else [])
+    if not (request.skip_existing and perception_path.exists()):
+        with atomic_output(perception_path, request.overwrite) as tmp:
+            tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
     return AnimationResult(files, perception_path, perceived, summaries, sequences)
