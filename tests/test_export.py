@@ -200,3 +200,16 @@ def test_export_command_on_a_beat2_npz(tmp_path, capsys):
     assert main(["export", str(npz), "--format", "bvh"]) == 2  # exists, no --overwrite
     assert "already exists" in capsys.readouterr().err
     assert main(["export", str(tmp_path / "missing.npz")]) == 2
+
+
+def test_a_label_that_changes_along_the_video_shows_each_text_from_its_time():
+    from emogesture.export.video import MannequinRenderer, label_overlays
+
+    overlays, which = label_overlays([(0.0, "emotion: anger"), (1.0, "emotion: sadness")], 320, 30.0, 60)
+    assert which.tolist() == [0] * 30 + [1] * 30 and len(overlays) == 2
+    seq = SMPLXSequence(poses=np.zeros((60, 55, 3), np.float32), trans=np.zeros((60, 3), np.float32))
+    frames = list(MannequinRenderer(320, 240).frames(seq, overlay=overlays, which=which))
+    corner = np.s_[8:30, 8:150]  # the label; the body does not move
+    assert np.array_equal(frames[0][corner], frames[29][corner])
+    assert not np.array_equal(frames[29][corner], frames[30][corner])
+    assert np.array_equal(frames[0][100:], frames[30][100:])

@@ -8,7 +8,8 @@ from pathlib import Path
 
 EMOTION_HELP = ("auto (default: the speech's own emotion, blended toward neutral where the voice is unlike the "
                 "training voices), own (the speech's own emotion as heard), or a label to animate instead: "
-                "neutral, happiness, anger, sadness, contempt, surprise, fear, disgust")
+                "neutral, happiness, anger, sadness, contempt, surprise, fear, disgust; or a timeline of keyframes "
+                "TIME:LABEL[@WEIGHT], e.g. \"0:neutral,12:anger,30:sadness@0.5\" (seconds; each holds until the next)")
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -9,7 +9,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from os import PathLike
 from pathlib import Path
 
@@ -44,11 +44,13 @@ def export_paths(stem: str | PathLike[str], formats: tuple[str, ...]) -> dict[st
 
 
 def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tuple[str, ...] = FORMATS, *,
-                    audio: tuple[np.ndarray, int] | None = None, label: str = "", overwrite: bool = False,
+                    audio: tuple[np.ndarray, int] | None = None, label: str | Sequence[tuple[float, str]] = "",
+                    overwrite: bool = False,
                     progress: bool = False, written: Callable[[Path], None] | None = None) -> list[Path]:
     """Write ``seq`` as ``<stem>.<format>`` for each format; every target is checked before the first
     is written (so an existing file without ``overwrite`` leaves nothing new behind), and each file
-    appears whole or not at all. ``audio = (waveform, rate)`` and ``label`` go into the video;
+    appears whole or not at all. ``audio = (waveform, rate)`` and ``label`` (a text, or ``(from seconds, text)``
+    pairs) go into the video;
     ``written(path)`` is called after each file."""
     paths = export_paths(stem, formats)
     for path in paths.values():

@@ -16,7 +16,7 @@ import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -194,16 +194,20 @@ class MannequinRenderer:
         solid = alpha[:, 0] >= 0.5
         zflat[pix[solid]] = depth[solid]
 
-    def frames(self, seq: SMPLXSequence, camera: Camera | None = None, overlay: np.ndarray | None = None,
+    def frames(self, seq: SMPLXSequence, camera: Camera | None = None,
+               overlay: np.ndarray | list[np.ndarray | None] | None = None, which: np.ndarray | None = None,
                workers: int = 1) -> Iterator[np.ndarray]:
         """RGB frames ``[H, W, 3]`` uint8 of the whole sequence, in order (forward kinematics batched),
-        with the ``overlay`` label pasted; ``workers > 1`` draws chunks of frames in that many forked
-        processes (the drawing is numpy alone)."""
+        with the ``overlay`` label pasted (a list of labels: frame ``i`` gets ``overlay[which[i]]``);
+        ``workers > 1`` draws chunks of frames in that many forked processes (the drawing is numpy alone)."""
         camera = camera or Camera.upper_body(seq, self.width, self.height)
         body = SkeletonBody(seq.betas)
         with torch.no_grad():
             joints = body(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).double().numpy()
-        job = (self, joints, camera, overlay)
+        if not isinstance(overlay, list):
+            overlay, which = [overlay], None
+        which = np.zeros(len(joints), int) if which is None else np.asarray(which)
+        job = (self, joints, camera, overlay, which)
         if workers <= 1 or len(joints) < 2 * _CHUNK or "fork" not in mp.get_all_start_methods():
             for i in range(len(joints)):
                 yield _draw(job, i)
@@ -222,8 +226,9 @@ _JOB = None
 
 
 def _draw(job, i: int) -> np.ndarray:
-    renderer, joints, camera, overlay = job
+    renderer, joints, camera, overlays, which = job
     frame = renderer.draw(joints[i], camera)
+    overlay = overlays[which[i]]
     return frame if overlay is None else _paste(frame, overlay)
 
 
@@ -246,6 +251,17 @@ def label_overlay(text: str, width: int) -> np.ndarray | None:
     return np.asarray(im, np.float64) / 255.0
 
 
+def label_overlays(label: str | Sequence[tuple[float, str]], width: int, fps: float, frames: int
+                   ) -> tuple[list[np.ndarray | None], np.ndarray]:
+    """A label, or ``(from seconds, text)`` labels in time order -> their overlays and, per frame, the index
+    of the one shown (the last that has started; the first before any has)."""
+    if isinstance(label, str):
+        return [label_overlay(label, width)], np.zeros(frames, int)
+    times = np.array([t for t, _ in label], np.float64)
+    which = np.searchsorted(times, np.arange(frames) / fps, side="right") - 1
+    return [label_overlay(text, width) for _, text in label], which.clip(0, None)
+
+
 def _paste(frame: np.ndarray, overlay: np.ndarray, x: int = 8, y: int = 8) -> np.ndarray:
     h, w = overlay.shape[:2]
     region = frame[y:y + h, x:x + w].astype(np.float64) / 255.0
@@ -265,16 +281,17 @@ def ffmpeg_binary() -> str:
 
 
 def save_mp4(seq: SMPLXSequence, path: str | PathLike[str], *, audio: tuple[np.ndarray, int] | None = None,
-             label: str = "", overwrite: bool = False, width: int = 640, height: int = 480,
-             progress: bool = False) -> Path:
+             label: str | Sequence[tuple[float, str]] = "", overwrite: bool = False, width: int = 640,
+             height: int = 480, progress: bool = False) -> Path:
     """Render ``seq`` to an H.264 MP4 (yuv420p, the sequence's fps) with ``audio = (waveform [N], rate)``
-    muxed in as AAC, atomically; refuses an existing file unless ``overwrite``."""
+    muxed in as AAC, atomically; refuses an existing file unless ``overwrite``. ``label``: the text in the
+    corner, or ``(from seconds, text)`` pairs for text that changes along the video."""
     import soundfile as sf
     from tqdm import tqdm
 
     ffmpeg = ffmpeg_binary()
     renderer = MannequinRenderer(width, height)
-    overlay = label_overlay(label, width)
+    overlays, which = label_overlays(label, width, seq.fps, seq.num_frames)
     with atomic_output(path, overwrite) as tmp, tempfile.TemporaryDirectory(prefix="emogesture-mp4-") as work:
         cmd = [ffmpeg, "-nostdin", "-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24",
                "-s", f"{width}x{height}", "-r", f"{float(seq.fps):g}", "-i", "pipe:0"]
@@ -289,7 +306,7 @@ def save_mp4(seq: SMPLXSequence, path: str | PathLike[str], *, audio: tuple[np.n
         except OSError as err:
             raise EmogestureError(f"{ffmpeg}: ffmpeg cannot be run ({err.strerror or err})") from None
         try:
-            frames = tqdm(renderer.frames(seq, overlay=overlay, workers=min(os.cpu_count() or 1, 2)),
+            frames = tqdm(renderer.frames(seq, overlay=overlays, which=which, workers=min(os.cpu_count() or 1, 2)),
                           total=seq.num_frames, desc=f"rendering {Path(path).name}", unit="frame",
                           disable=not progress, leave=False)
             for frame in frames:

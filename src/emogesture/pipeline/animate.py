@@ -30,6 +30,7 @@ from emogesture.fileio import atomic_output, check_output
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
 from emogesture.pipeline.postprocess import candidates_drawn
+from emogesture.pipeline.timeline import EmotionTimeline, is_timeline
 from emogesture.types import SMPLXSequence
 
 __all__ = ["AnimationRequest", "AnimationResult", "animate", "emotion_request"]
@@ -51,8 +52,9 @@ class AnimationRequest:
     """What to animate and where to write it; checked when made (:meth:`validate`).
 
     ``emotion``: ``auto`` (the speech's own emotion, blended toward neutral where the voice is unlike the
-    training voices), ``own`` (as heard) or a label of :data:`~emogesture.data.beat.EMOTIONS` to animate
-    instead. ``emotion_weight``: 0..1 between the speech's own emotion (0) and the label or the
+    training voices), ``own`` (as heard), a label of :data:`~emogesture.data.beat.EMOTIONS` to animate
+    instead, or a timeline of keyframes ``"0:neutral,12:anger,30:sadness@0.5"``
+    (:mod:`emogesture.pipeline.timeline`). ``emotion_weight``: 0..1 between the speech's own emotion (0) and the label or the
     ``emotion_from`` recording (1); None means 1, and a weight without either target is an error.
     ``formats``: names of :data:`~emogesture.export.FORMATS` (or one comma-separated string).
     ``samples``: how many different sequences to draw from ``seed`` (files ``_0``, ``_1``, ...);
@@ -77,6 +79,7 @@ class AnimationRequest:
     skip_existing: bool = False
     mode: str = field(init=False, default="auto")  # auto / own, from ``emotion``
     label: str | None = field(init=False, default=None)  # the label edited toward, from ``emotion``
+    timeline: EmotionTimeline | None = field(init=False, default=None)  # keyframes, from ``emotion``
     weight: float = field(init=False, default=1.0)  # ``emotion_weight`` with None read as 1
 
     def __post_init__(self) -> None:
@@ -90,7 +93,11 @@ class AnimationRequest:
         :attr:`weight`; raises :class:`EmogestureError` with a one-line message naming the problem."""
         text = self.formats if isinstance(self.formats, str) else ",".join(self.formats)
         self.formats = parse_formats(text)
-        self.mode, self.label = emotion_request(self.emotion)
+        self.timeline = EmotionTimeline.parse(self.emotion) if is_timeline(self.emotion) else None
+        self.mode, self.label = ("auto", None) if self.timeline is not None else emotion_request(self.emotion)
+        if self.timeline is not None and (self.emotion_from is not None or self.emotion_weight is not None):
+            raise EmogestureError("an --emotion timeline holds its own labels and weights (TIME:LABEL@WEIGHT); "
+                                  "it takes no --emotion-from or --emotion-weight")
         if self.label is not None and self.emotion_from is not None:
             raise EmogestureError(f"--emotion {self.label} and --emotion-from {self.emotion_from}: choose one target "
                                   "emotion")
@@ -112,7 +119,7 @@ class AnimationRequest:
     @property
     def edited(self) -> bool:
         """Whether anything comes from elsewhere: an emotion label or recording, or a style recording."""
-        return bool(self.emotion_from or self.label or self.style_from)
+        return bool(self.emotion_from or self.label or self.style_from or self.timeline)
 
     @property
     def tag(self) -> str:
@@ -122,6 +129,8 @@ class AnimationRequest:
             tag += f"_emotion-{self.emotion_from.stem}"
         if self.label:
             tag += f"_emotion-{self.label}"
+        if self.timeline is not None:
+            tag += f"_emotion-{self.timeline.tag}"
         if self.style_from:
             tag += f"_style-{self.style_from.stem}"
         return tag + ("_own" if self.mode == "own" else "")
@@ -139,13 +148,17 @@ class AnimationRequest:
         """``out/<speech><tag>_seed<seed>_perception.json``."""
         return self.out / f"{self.speech.stem}{self.tag}_seed{self.seed}_perception.json"
 
-    def video_label(self, sample: int) -> str:
-        """The three lines shown in a video: the speech's name, where emotion and style come from, seed and sample."""
+    def video_label(self, sample: int) -> str | list[tuple[float, str]]:
+        """The three lines shown in a video: the speech's name, where emotion and style come from, seed and
+        sample; with a timeline, ``(from seconds, lines)`` for each keyframe, naming the emotion in force."""
+        style = f"style from {self.style_from.name}" if self.style_from else "style: own"
+        if self.timeline is not None:
+            return [(t, f"{self.speech.name}\nemotion: {name} (from {t:g} s)  |  {style}\nseed {self.seed}, "
+                        f"sample {sample}") for t, name in self.timeline.video_labels()]
         emotion = (f"emotion: {self.label}" if self.label else f"emotion from {self.emotion_from.name}"
                    if self.emotion_from else f"emotion: own ({self.mode})")
         if (self.label or self.emotion_from) and self.weight < 1.0:
             emotion += f" x{self.weight:g}"
-        style = f"style from {self.style_from.name}" if self.style_from else "style: own"
         return f"{self.speech.name}\n{emotion}  |  {style}\nseed {self.seed}, sample {sample}"
 
 
@@ -181,7 +194,10 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     wave = pipe.load_speech(request.speech)
     emotion_wave = pipe.load_speech(request.emotion_from) if request.emotion_from is not None else None
     style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
-    edit = EditRequest(emotion_weight=request.weight, emotion_label=request.label) if request.edited else None
+    if request.timeline is not None:
+        request.timeline.check_duration(len(wave) / TARGET_SAMPLE_RATE, request.speech)
+    edit = (EditRequest(emotion_weight=request.weight, emotion_label=request.label,
+                        emotion_timeline=request.timeline) if request.edited else None)
     stems, perception_path = request.stems(), request.perception_path
     if request.skip_existing:  # a format is written for a sample where its file is missing
         formats = [tuple(f for f, path in export_paths(stem, request.formats).items() if not path.exists())
@@ -200,6 +216,9 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
               desc="encoding speech", unit="window", disable=not progress, leave=False) as bar:
         encoded = pipe.encode(wave, progress=bar.update)
     perceived = [pipe.perceive(*encoded, source=str(request.speech))]
+    if request.timeline is not None:  # the emotion in force in each window, in the report
+        perceived[0].in_force = request.timeline.window_report(
+            request.timeline.shares(encoded[1], WINDOW_SECONDS, len(wave) / TARGET_SAMPLE_RATE))
     if edit is not None and emotion_wave is not None:
         enc, starts = pipe.encode(emotion_wave, parts=pipe.edit_source_parts("emotion"))
         perceived.append(pipe.perceive(enc, starts, source=str(request.emotion_from)))

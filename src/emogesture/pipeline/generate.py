@@ -36,6 +36,7 @@ from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candi
                                              residual_weights, settle_quiet_windows, stitch)
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, auto_style, perceive, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
+from emogesture.pipeline.timeline import EmotionTimeline, timeline_latents
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
 from emogesture.types import SMPLXSequence
 
@@ -56,6 +57,8 @@ class EditRequest:
     emotion_label: str | None = None
     emotion_weight: float = 1.0  # 0 = the speech's own emotion, 1 = the target emotion
     style_from: np.ndarray | None = None  # [n, 256]
+    #: emotion keyframes along the speech (in place of the other emotion edits; pipeline/timeline.py)
+    emotion_timeline: EmotionTimeline | None = None
 
 
 EMOTION_MODES = ("auto", "own")
@@ -142,23 +145,31 @@ class GesturePipeline:
         """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""
         return perceive(enc, starts_s, perception_of(self.speech), source)
 
-    def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto"
-                   ) -> list[np.ndarray]:
+    def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto",
+                   starts_s: list[float] | None = None, duration_s: float | None = None) -> list[np.ndarray]:
         """Condition latents ``[c, e, s]`` ``[W, 256]`` of encoded windows: ``emotion_mode`` ``auto``
         blends untrusted emotion latents toward neutral and the style latents of an unfamiliar voice toward
         the typical training style (:mod:`emogesture.pipeline.perception`), ``own`` keeps them; then the
         edit, if any. A model that hears timing also gets the windows' own timing
-        stream ``[W, 300, 2]`` (never the edit source's)."""
+        stream ``[W, 300, 2]`` (never the edit source's). An emotion timeline needs the windows' start
+        seconds ``starts_s`` and the recording's ``duration_s``."""
         if emotion_mode not in EMOTION_MODES:
             raise EmogestureError(f"emotion mode {emotion_mode!r}: choose one of {', '.join(EMOTION_MODES)}")
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
+        perception = perception_of(self.speech)
         if emotion_mode == "auto":
-            perception = perception_of(self.speech)
             e, s = auto_emotion(e, s, perception), auto_style(s, perception)
         if edit is not None:
             n = len(c)
             target = None
-            if edit.emotion_from is not None:
+            if edit.emotion_timeline is not None:
+                if starts_s is None or duration_s is None:
+                    raise EmogestureError("an emotion timeline needs the windows' start times and the duration")
+                shares = edit.emotion_timeline.shares(starts_s, WINDOW_SECONDS, duration_s)
+                e = timeline_latents(edit.emotion_timeline, shares, enc.emotion,
+                                     auto_emotion(enc.emotion, enc.style, perception),
+                                     self.loaded.metadata.emotion_latent_means or {})
+            elif edit.emotion_from is not None:
                 target = edit.emotion_from[np.arange(n) % len(edit.emotion_from)]
             elif edit.emotion_label is not None:
                 means = self.loaded.metadata.emotion_latent_means or {}
@@ -214,7 +225,7 @@ class GesturePipeline:
         """
         settings = self.settings(generation, seam_candidates, hop_seconds)
         enc, starts_s = encoded if encoded is not None else self.encode(waveform, settings.hop_seconds, times=times)
-        conds = self.conditions(enc, edit, emotion_mode)
+        conds = self.conditions(enc, edit, emotion_mode, starts_s, len(waveform) / TARGET_SAMPLE_RATE)
         starts = [int(round(s * self.fps)) for s in starts_s]
         n = len(starts)
         k_cand = candidates_drawn(n, settings.seam_candidates)

@@ -174,6 +174,8 @@ class PerceivedEmotion:
     probabilities: np.ndarray  # [W, 8] softmax of the emotion logits
     distance: np.ndarray | None  # [W, 2] emotion / voice distance over its threshold (None: not calibrated)
     trust: np.ndarray | None  # [W]
+    #: per window, the emotion animated instead, where a timeline says (keyframe name -> share of the window)
+    in_force: list[dict[str, float]] | None = None
 
     @property
     def majority(self) -> tuple[str, int]:
@@ -214,6 +216,8 @@ class PerceivedEmotion:
                 row["emotion_distance"] = round(float(self.distance[i, 0]), 4)
                 row["voice_distance"] = round(float(self.distance[i, 1]), 4)
                 row["trust"] = round(float(self.trust[i]), 4)
+            if self.in_force is not None:
+                row["animated_emotion"] = self.in_force[i]
             rows.append(row)
         label, count = self.majority
         return json.dumps({"source": self.source, "emotion": label, "windows_agreeing": count,
