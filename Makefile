@@ -7,10 +7,13 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
-# ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH export;
-# pocketsphinx-testdata holds real recorded speech for the real-speech checks
+# ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
+# exports (its glTF importer needs python3-numpy); pocketsphinx-testdata holds real recorded speech for the
+# real-speech checks; Khronos' glTF-Validator (npm, into build/node) checks the glb files
 DEMO_APT := ffmpeg
-TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender pocketsphinx-testdata
+TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
+	pocketsphinx-testdata
+GLTF_VALIDATOR := build/node/node_modules/gltf-validator/package.json
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo
 DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \
@@ -32,7 +35,7 @@ $(DEMO_DIR)/talk_emotion-angry_seed0_0.mp4:
 $(DEMO_DIR)/talk_style-angry_seed0_0.mp4:
 	$(EG) generate $(CLIPS)/talk.flac -o $(DEMO_DIR) --style-from $(CLIPS)/angry.flac
 
-test: apt-test $(VENV)/.installed
+test: apt-test $(VENV)/.installed $(GLTF_VALIDATOR)
 	$(PY) -m pytest -q tests
 
 model: apt-test $(VENV)/.installed
@@ -58,6 +61,12 @@ apt-demo:
 	$(call apt_install,$(DEMO_APT))
 apt-test:
 	$(call apt_install,$(TEST_APT))
+
+# node and npm from Debian where the machine has none (a machine with its own node keeps it)
+$(GLTF_VALIDATOR):
+	@command -v npm >/dev/null || { SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq nodejs npm >/dev/null; }
+	npm install --prefix build/node --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10
 
 # The CPU build of torch first (pinned), so the package's torch range adds nothing.
 $(VENV)/.installed: pyproject.toml

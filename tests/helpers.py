@@ -1,16 +1,36 @@
-"""Helpers shared by the tests: a small BEAT2-layout folder and the command line."""
+"""Helpers shared by the tests: a small BEAT2-layout folder, the command line, speech-like audio and
+gesture-like motion with its forward kinematics."""
 
 import sys
 from pathlib import Path
 
 import numpy as np
 import soundfile as sf
+import torch
 
 from emogesture.data.beat import format_take_name, write_split_csv
-from emogesture.motion import save_smplx_npz
+from emogesture.motion import SkeletonBody, save_smplx_npz
 from emogesture.types import SMPLXSequence
 
 SECONDS = 21.0
+
+
+def gesture_like(frames: int = 45, seed: int = 0) -> SMPLXSequence:
+    """Smooth random rotations on every joint (large on the arms), a drifting root, non-zero shape."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, 2 * np.pi, frames)[:, None, None]
+    amp = rng.uniform(0.05, 0.4, (1, 55, 3))
+    amp[:, 16:22] *= 3.0
+    poses = amp * np.sin(t * rng.uniform(0.5, 2.0, (1, 55, 3)) + rng.uniform(0, 6, (1, 55, 3)))
+    trans = 0.1 * np.sin(t[:, 0] * np.array([1.0, 0.5, 0.7]))
+    betas = np.zeros(300, np.float32)
+    betas[:10] = rng.normal(0, 1, 10)
+    return SMPLXSequence(poses=poses.astype(np.float32), trans=trans.astype(np.float32), betas=betas)
+
+
+def fk(seq: SMPLXSequence) -> np.ndarray:
+    with torch.no_grad():
+        return SkeletonBody(seq.betas)(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
 
 
 def speech_like(seconds: float = 3.0, sr: int = 16000, seed: int = 0) -> np.ndarray:

@@ -16,28 +16,12 @@ from emogesture.cli.main import main
 from emogesture.errors import EmogestureError, OutputExistsError
 from emogesture.export import export_sequence, parse_formats, save_bvh, save_mp4
 from emogesture.export.video import Camera, MannequinRenderer
-from emogesture.motion import JOINT_NAMES, SkeletonBody, axis_angle_to_matrix, save_smplx_npz
+from emogesture.motion import JOINT_NAMES, axis_angle_to_matrix, save_smplx_npz
 from emogesture.types import SMPLXSequence
 
+from helpers import fk, gesture_like
+
 RIGHT_WRIST = JOINT_NAMES.index("right_wrist")
-
-
-def gesture_like(frames: int = 45, seed: int = 0) -> SMPLXSequence:
-    """Smooth random rotations on every joint (large on the arms), a drifting root, non-zero shape."""
-    rng = np.random.default_rng(seed)
-    t = np.linspace(0, 2 * np.pi, frames)[:, None, None]
-    amp = rng.uniform(0.05, 0.4, (1, 55, 3))
-    amp[:, 16:22] *= 3.0
-    poses = amp * np.sin(t * rng.uniform(0.5, 2.0, (1, 55, 3)) + rng.uniform(0, 6, (1, 55, 3)))
-    trans = 0.1 * np.sin(t[:, 0] * np.array([1.0, 0.5, 0.7]))
-    betas = np.zeros(300, np.float32)
-    betas[:10] = rng.normal(0, 1, 10)
-    return SMPLXSequence(poses=poses.astype(np.float32), trans=trans.astype(np.float32), betas=betas)
-
-
-def fk(seq: SMPLXSequence) -> np.ndarray:
-    with torch.no_grad():
-        return SkeletonBody(seq.betas)(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
 
 
 def test_bvh_read_by_bvhio_matches_channels_and_forward_kinematics(tmp_path):

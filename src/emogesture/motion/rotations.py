@@ -36,7 +36,7 @@ def axis_angle_to_matrix(axis_angle: torch.Tensor) -> torch.Tensor:
 def matrix_to_axis_angle(matrix: torch.Tensor) -> torch.Tensor:
     """Rotation matrices ``[..., 3, 3]`` -> rotation vectors ``[..., 3]`` with angle in ``[0, pi]``."""
     _check_last(matrix, (3, 3), "matrix")
-    q = _matrix_to_quaternion(matrix)  # [..., 4] as (x, y, z, w), w >= 0
+    q = matrix_to_quaternion(matrix)  # [..., 4] as (x, y, z, w), w >= 0
     xyz, w = q[..., :3], q[..., 3:]
     sin_half = xyz.norm(dim=-1, keepdim=True)
     angle = 2.0 * torch.atan2(sin_half, w)
@@ -155,7 +155,7 @@ def _skew(v: torch.Tensor) -> torch.Tensor:
     return torch.stack([o, -z, y, z, o, -x, -y, x, o], dim=-1).reshape(*v.shape[:-1], 3, 3)
 
 
-def _matrix_to_quaternion(m: torch.Tensor) -> torch.Tensor:
+def matrix_to_quaternion(m: torch.Tensor) -> torch.Tensor:
     """Rotation matrices ``[..., 3, 3]`` -> unit quaternions ``[..., 4]`` (x, y, z, w), w >= 0.
 
     Of the four algebraically equal solutions, each row uses the one built on its largest

@@ -25,7 +25,7 @@ from tqdm import tqdm
 from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
-from emogesture.export import FORMATS, export_paths, export_sequence, parse_formats
+from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, parse_formats
 from emogesture.fileio import atomic_output, check_output
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
@@ -68,7 +68,7 @@ class AnimationRequest:
     emotion_weight: float | None = None
     emotion_from: Path | None = None
     style_from: Path | None = None
-    formats: tuple[str, ...] = FORMATS
+    formats: tuple[str, ...] = DEFAULT_FORMATS
     seed: int = 0
     samples: int = 1
     seam_candidates: int | None = None

@@ -1,0 +1,190 @@
+"""Binary glTF 2.0 (``.glb``): a skinned mannequin playing the animation, for Blender, three.js, Godot,
+Unity (with a glTF importer such as glTFast) and Unreal (glTF import).
+
+The file holds one scene:
+
+- the SMPL-X skeleton, one node per joint named as in :data:`~emogesture.motion.JOINT_NAMES`, each at its
+  rest offset from its parent (the rest skeleton of :class:`~emogesture.motion.SkeletonBody`, so the file's
+  joints are where our forward kinematics puts them), with no rest rotation;
+- the ``mannequin-x`` wooden mannequin (Apache-2.0; 24 k vertices) skinned to it, four joints per vertex
+  (its hand joints are our wrists; no vertex follows the jaw or the eyes);
+- one animation at the sequence's frame rate: every joint's rotation and the pelvis's translation, with
+  linear interpolation. Joints the model does not animate keep their rest (identity) rotation.
+
+Units are metres, +Y is up and the character faces +Z, as in SMPL-X and glTF.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from functools import lru_cache
+from os import PathLike
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from emogesture.errors import EmogestureError
+from emogesture.fileio import atomic_output
+from emogesture.motion import JOINT_NAMES, PARENTS, rest_joints, rest_offsets
+from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
+from emogesture.motion.skeleton import MANNEQUIN_TO_SMPLX
+from emogesture.types import SMPLXSequence
+
+# glTF constants: component types, buffer-view targets, primitive mode
+_FLOAT, _UBYTE, _USHORT = 5126, 5121, 5123
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_TRIANGLES = 4
+#: the mannequin's hand joints sit on the wrists and turn with them
+_HAND_TO_WRIST = {"L_Hand": JOINT_NAMES.index("left_wrist"), "R_Hand": JOINT_NAMES.index("right_wrist")}
+WOOD = (0.78, 0.60, 0.42, 1.0)
+
+
+@lru_cache(maxsize=4)
+def mannequin_skin(shape_key: tuple[float, ...] = (0.0,) * 10) -> dict[str, np.ndarray]:
+    """The wooden mannequin at rest for a body shape: ``positions [V, 3]`` float32, ``normals [V, 3]``,
+    ``indices [F * 3]`` uint16, ``joints [V, 4]`` uint8 (SMPL-X joint indices) and ``weights [V, 4]``
+    float32 (rows sum to 1)."""
+    try:
+        from mannequin import Mannequin
+    except ImportError:
+        raise EmogestureError("glb export needs the mannequin-x package (pip install mannequin-x)") from None
+    model = Mannequin("wooden", shape=np.asarray(shape_key, np.float32), flat_hand_mean=True)
+    positions = np.asarray(model.vertices(model.rest_pose()), np.float32)
+    try:  # the skin as the package binds it (its four strongest joints per vertex)
+        index, weights = np.asarray(model._skin_joint_indices), np.asarray(model._skin_weights, np.float32)
+    except AttributeError:
+        raise EmogestureError("this mannequin-x release keeps its skin elsewhere; glb export needs mannequin-x "
+                              "0.3 (pip install 'mannequin-x>=0.3,<0.4')") from None
+    to_smplx = np.array([MANNEQUIN_TO_SMPLX.get(name, _HAND_TO_WRIST.get(name, -1)) for name in model.joint_names])
+    joints = np.where(weights > 0, to_smplx[index], 0)  # an unused slot names joint 0, as glTF asks
+    if (joints < 0).any():
+        raise EmogestureError(f"mannequin-x skins joints this exporter does not know: "
+                              f"{sorted({model.joint_names[i] for i in index[joints < 0]})}")
+    joints = joints.astype(np.int64)
+    faces = np.asarray(model.faces, np.int64)
+    if positions.shape[0] > 65535:
+        raise EmogestureError("the mannequin has more vertices than 16-bit indices address")
+    normals = np.zeros_like(positions, np.float64)
+    corner = positions[faces].astype(np.float64)
+    area = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])  # |n| = twice the area
+    for k in range(3):
+        np.add.at(normals, faces[:, k], area)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True).clip(1e-12)
+    return {"positions": positions, "normals": normals.astype(np.float32),
+            "indices": faces.reshape(-1).astype(np.uint16), "joints": joints.astype(np.uint8),
+            "weights": weights / weights.sum(1, keepdims=True)}
+
+
+def sequence_rotations(seq: SMPLXSequence) -> np.ndarray:
+    """Local joint rotations as unit quaternions ``[T, 55, 4]`` (x, y, z, w), each joint's kept on one
+    side of the sphere from frame to frame (so interpolation between frames takes the short way)."""
+    q = matrix_to_quaternion(axis_angle_to_matrix(torch.from_numpy(np.asarray(seq.poses, np.float32)))).numpy()
+    flips = np.cumsum(np.concatenate([np.zeros((1, q.shape[1])), (q[1:] * q[:-1]).sum(-1) < 0]), 0) % 2
+    return np.where(flips[..., None] == 1, -q, q).astype(np.float32)
+
+
+class _Buffer:
+    """The binary chunk: buffer views and accessors appended one after another, 4-byte aligned."""
+
+    def __init__(self) -> None:
+        self.data = bytearray()
+        self.views: list[dict] = []
+        self.accessors: list[dict] = []
+
+    def add(self, array: np.ndarray, kind: str, component: int, target: int | None = None,
+            bounds: bool = False, normalized: bool = False) -> int:
+        array = np.ascontiguousarray(array)
+        self.data += b"\0" * (-len(self.data) % 4)
+        view = {"buffer": 0, "byteOffset": len(self.data), "byteLength": array.nbytes}
+        if target is not None:
+            view["target"] = target
+        self.data += array.tobytes()
+        self.views.append(view)
+        count = array.shape[0] if array.ndim else 1
+        accessor = {"bufferView": len(self.views) - 1, "componentType": component, "count": count, "type": kind}
+        if normalized:
+            accessor["normalized"] = True
+        if bounds:
+            flat = array.reshape(count, -1)
+            accessor["min"], accessor["max"] = flat.min(0).tolist(), flat.max(0).tolist()
+        self.accessors.append(accessor)
+        return len(self.accessors) - 1
+
+
+def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture") -> tuple[dict, bytes]:
+    """The glTF JSON and its binary buffer for ``seq`` (module docstring)."""
+    shape = tuple(float(b) for b in np.pad(np.asarray(seq.betas, np.float32).reshape(-1)[:10],
+                                           (0, max(0, 10 - np.asarray(seq.betas).size))))
+    skin = mannequin_skin(shape)
+    offsets, rest = rest_offsets(seq.betas), rest_joints(seq.betas)
+    buf = _Buffer()
+    mesh_attributes = {
+        "POSITION": buf.add(skin["positions"], "VEC3", _FLOAT, _ARRAY_BUFFER, bounds=True),
+        "NORMAL": buf.add(skin["normals"], "VEC3", _FLOAT, _ARRAY_BUFFER),
+        "JOINTS_0": buf.add(skin["joints"], "VEC4", _UBYTE, _ARRAY_BUFFER),
+        "WEIGHTS_0": buf.add(skin["weights"], "VEC4", _FLOAT, _ARRAY_BUFFER),
+    }
+    indices = buf.add(skin["indices"], "SCALAR", _USHORT, _ELEMENT_ARRAY_BUFFER)
+    # joint j's rest world transform is a translation to rest[j]; its inverse, column-major
+    inverse_bind = np.tile(np.eye(4, dtype=np.float32), (len(JOINT_NAMES), 1, 1))
+    inverse_bind[:, :3, 3] = -rest
+    ibm = buf.add(inverse_bind.transpose(0, 2, 1).reshape(len(JOINT_NAMES), 16), "MAT4", _FLOAT)
+
+    frames = seq.num_frames
+    times = buf.add((np.arange(frames) / float(seq.fps)).astype(np.float32), "SCALAR", _FLOAT, bounds=True)
+    rotations = sequence_rotations(seq)
+    channels, samplers = [], []
+    for j in range(len(JOINT_NAMES)):
+        samplers.append({"input": times, "output": buf.add(rotations[:, j], "VEC4", _FLOAT),
+                         "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
+    root = (rest[0][None] + np.asarray(seq.trans, np.float32)).astype(np.float32)
+    samplers.append({"input": times, "output": buf.add(root, "VEC3", _FLOAT), "interpolation": "LINEAR"})
+    channels.append({"sampler": len(samplers) - 1, "target": {"node": 0, "path": "translation"}})
+
+    nodes = []
+    for j, joint in enumerate(JOINT_NAMES):
+        node = {"name": joint, "translation": offsets[j].astype(float).tolist()}
+        children = [c for c, p in enumerate(PARENTS) if p == j]
+        if children:
+            node["children"] = children
+        nodes.append(node)
+    nodes.append({"name": "mannequin", "mesh": 0, "skin": 0})  # a root node: the skin alone places it
+    gltf = {
+        "asset": {"version": "2.0", "generator": "emogesture"},
+        "scene": 0,
+        "scenes": [{"name": name, "nodes": [0, len(nodes) - 1]}],
+        "nodes": nodes,
+        "meshes": [{"name": "mannequin", "primitives": [{"attributes": mesh_attributes, "indices": indices,
+                                                          "material": 0, "mode": _TRIANGLES}]}],
+        "materials": [{"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": list(WOOD), "metallicFactor": 0.0,
+                                                                "roughnessFactor": 0.7}}],
+        "skins": [{"name": "smplx", "joints": list(range(len(JOINT_NAMES))), "skeleton": 0,
+                   "inverseBindMatrices": ibm}],
+        "animations": [{"name": name, "channels": channels, "samplers": samplers}],
+        "accessors": buf.accessors,
+        "bufferViews": buf.views,
+        "buffers": [{"byteLength": len(buf.data)}],
+    }
+    return gltf, bytes(buf.data)
+
+
+def glb_bytes(gltf: dict, binary: bytes) -> bytes:
+    """A GLB container: the 12-byte header, the JSON chunk (space-padded) and the BIN chunk (zero-padded)."""
+    text = json.dumps(gltf, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    binary = binary + b"\0" * (-len(binary) % 4)
+    total = 12 + 8 + len(text) + 8 + len(binary)
+    return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<I4s", len(text), b"JSON") + text
+            + struct.pack("<I4s", len(binary), b"BIN\0") + binary)
+
+
+def save_glb(seq: SMPLXSequence, path: str | PathLike[str], *, overwrite: bool = False) -> Path:
+    """Write ``seq`` as a binary glTF file (module docstring), atomically; refuses an existing file
+    unless ``overwrite``."""
+    data = glb_bytes(*sequence_to_gltf(seq, Path(path).stem))
+    with atomic_output(path, overwrite) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
