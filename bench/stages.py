@@ -3,7 +3,7 @@
 For one preset and one precision, a clip of SECONDS of speech (default 60) goes through
 ``GesturePipeline.generate`` (default settings: 7-s hops, 4 seam candidates, one sample) with its
 stage timer on; the three audio encoders are timed apart by hooks on the speech model; the exports
-(npz, bvh, glb, mp4) are timed on the generated sequence. Each row gives seconds per 10 s of audio, the
+(npz, bvh, glb, fbx, mp4) are timed on the generated sequence. Each row gives seconds per 10 s of audio, the
 real-time factor, the FLOPs counted for the stage (torch's FlopCounter on a weightless copy) and
 the ratio of the time to its floor (FLOPs ÷ the matrix throughput of the precision, measured here).
 The first of REPEATS generations is a warm-up; the best of the others is kept.
@@ -67,7 +67,7 @@ def run(preset: str, precision: str, seconds: float, exports: bool, repeats: int
     if exports:
         from emogesture.export import export_sequence
 
-        for fmt in ("npz", "bvh", "glb", "mp4"):
+        for fmt in ("npz", "bvh", "glb", "fbx", "mp4"):
             with times.stage(f"export {fmt}"):
                 export_sequence(seq, work / f"out_{fmt}", (fmt,), audio=(wave, 16000), overwrite=True)
     windows = len(window_starts(seconds, WINDOW_SECONDS, HOP_SECONDS))
@@ -82,7 +82,7 @@ def run(preset: str, precision: str, seconds: float, exports: bool, repeats: int
     rate = floor["bf16" if precision == "bf16" else "fp32"] * 1e9
     rows = []
     order = ["decode audio", "fbank", *ENCODERS, "speech encoders", "sampling", "motion decoder", "seams and poses",
-             "export npz", "export bvh", "export glb", "export mp4"]
+             "export npz", "export bvh", "export glb", "export fbx", "export mp4"]
     for name in order:
         if name not in times:
             continue
@@ -148,7 +148,7 @@ def main() -> None:
     ap.add_argument("--preset", default="tiny", choices=["tiny", "paper"])
     ap.add_argument("--precision", default="fp32", choices=["fp32", "bf16"])
     ap.add_argument("--seconds", type=float, default=60.0)
-    ap.add_argument("--exports", action="store_true", help="also time the npz, bvh, glb and mp4 exports")
+    ap.add_argument("--exports", action="store_true", help="also time the npz, bvh, glb, fbx and mp4 exports")
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--json", type=Path, help="write the result here")
     args = ap.parse_args()

@@ -1,5 +1,6 @@
-"""The glb export: a valid binary glTF 2.0 file (Khronos' glTF-Validator), a skinned mannequin whose skin is the
-mannequin-x package's own, and in Blender's glTF importer the right bones, frames and joint positions."""
+"""The glb and fbx exports: a valid binary glTF 2.0 file (Khronos' glTF-Validator), a skinned mannequin whose
+skin is the mannequin-x package's own, and in Blender's glTF and FBX importers the right bones, frames and
+joint positions; without Blender, fbx says what to install."""
 
 import json
 import os
@@ -12,7 +13,8 @@ import numpy as np
 import pytest
 import torch
 
-from emogesture.export import save_glb
+from emogesture.errors import EmogestureError
+from emogesture.export import save_fbx, save_glb
 from emogesture.export.gltf import mannequin_skin, sequence_to_gltf
 from emogesture.motion import JOINT_NAMES, SkeletonBody
 from emogesture.motion.rotations import axis_angle_to_matrix
@@ -130,3 +132,36 @@ def test_glb_in_real_blender(tmp_path):
 def test_glb_bytes_are_reproducible():
     seq = gesture_like(frames=10, seed=1)
     assert sequence_to_gltf(seq)[1] == sequence_to_gltf(seq)[1]
+
+
+@pytest.mark.slow
+def test_fbx_written_by_blender_reads_back_with_the_bones_frames_and_joints(tmp_path):
+    blender = shutil.which("blender")
+    if blender is None:
+        if os.environ.get("CI"):
+            pytest.fail("blender is not installed (make test installs Debian's package)")
+        pytest.skip("blender not installed (make test installs it)")
+    seq = gesture_like(frames=40, seed=5)
+    path = save_fbx(seq, tmp_path / "f.fbx")
+    out = tmp_path / "blender.json"
+    frames = [1, 10, 25, 40]  # Blender's FBX importer starts at frame 1
+    proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(ROOT / "tests" / "blender" /
+                           "import_gltf.py"), "--", str(path), str(out), *map(str, frames)],
+                          capture_output=True, text=True, timeout=300)
+    assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
+    got = json.loads(out.read_text())
+    assert got["bones"] == 55 and set(got["names"]) == set(JOINT_NAMES)
+    assert got["action_frame_range"] == [1.0, 40.0] and got["skinned"]
+    ours = fk(seq)
+    for f in frames:
+        for name in ("right_wrist", "left_wrist", "left_index3", "head"):
+            b = np.array(got["heads"][str(f)][name])
+            o = ours[f - 1, JOINT_NAMES.index(name)]
+            assert np.linalg.norm(b - np.array([o[0], -o[2], o[1]])) < 0.01, (f, name)
+
+
+def test_fbx_without_blender_says_what_to_install(tmp_path, monkeypatch):
+    monkeypatch.setenv("EMOGESTURE_BLENDER", str(tmp_path / "no-blender"))
+    with pytest.raises(EmogestureError, match="fbx export runs Blender.*apt-get install blender") as err:
+        save_fbx(gesture_like(frames=5), tmp_path / "x.fbx")
+    assert "\n" not in str(err.value) and not (tmp_path / "x.fbx").exists()

@@ -1,4 +1,4 @@
-"""``emogesture generate`` (speech -> animation files) and ``emogesture export`` (npz -> bvh / glb / mp4)."""
+"""``emogesture generate`` (speech -> animation files) and ``emogesture export`` (npz -> bvh / glb / fbx / mp4)."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ EMOTION_HELP = ("auto (default: the speech's own emotion, blended toward neutral
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("generate", help="animate speech recordings (npz, bvh, mp4, glb)",
+    p = sub.add_parser("generate", help="animate speech recordings (npz, bvh, mp4, glb, fbx)",
                        description="Animate each SPEECH with the bundled model (or --model), loaded once. Emotion and "
                        "speaker style can come from other recordings, or the emotion from a label. Writes "
-                       "<speech>[_edit]_seed<seed>_<sample>.{npz,bvh,mp4,glb} and <speech>[_edit]_seed<seed>_perception.json "
+                       "<speech>[_edit]_seed<seed>_<sample>.{npz,bvh,mp4,glb,fbx} and <speech>[_edit]_seed<seed>_perception.json "
                        "into --out; existing files are never replaced without --overwrite. A recording that fails "
                        "prints its error and the others go on (exit status 2 if any failed).")
     p.add_argument("speech", type=Path, nargs="+",
@@ -31,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="0..1 blend between the speech's own emotion (0) and the --emotion label or --emotion-from "
                    "recording (1; the default)")
     p.add_argument("--style-from", type=Path, metavar="WAV", help="take the speaker style from this recording")
-    p.add_argument("--format", default="npz,bvh,mp4", help="comma-separated output formats: npz, bvh, mp4, glb (default npz,bvh,mp4)")
+    p.add_argument("--format", default="npz,bvh,mp4",
+                   help="comma-separated output formats: npz, bvh, mp4, glb, fbx (fbx needs Blender; default npz,bvh,mp4)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
     p.add_argument("--seam-candidates", type=int, default=None,
@@ -49,10 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run_generate)
 
-    p = sub.add_parser("export", help="turn a BEAT2/SMPL-X .npz (generated or your own mocap) into bvh / glb / mp4",
-                       description="Write FILE.npz as FILE.bvh, FILE.glb and/or FILE.mp4 (into --out, default beside it).")
+    p = sub.add_parser("export", help="turn a BEAT2/SMPL-X .npz (generated or your own mocap) into bvh/glb/fbx/mp4",
+                       description="Write FILE.npz as FILE.bvh, FILE.glb, FILE.fbx and/or FILE.mp4 (into --out, "
+                       "default beside it).")
     p.add_argument("npz", type=Path, help="an SMPL-X animation in BEAT2's .npz format")
-    p.add_argument("--format", default="bvh,mp4", help="comma-separated: npz, bvh, glb, mp4 (default bvh,mp4)")
+    p.add_argument("--format", default="bvh,mp4", help="comma-separated: npz, bvh, glb, fbx, mp4 (default bvh,mp4)")
     p.add_argument("--audio", type=Path, metavar="WAV", help="speech to put into the video")
     p.add_argument("-o", "--out", type=Path, help="output folder (default: beside the npz)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")

@@ -6,7 +6,9 @@
   Maya, MotionBuilder;
 - ``mp4``: a rendered preview with the speech (:mod:`emogesture.export.video`), for any player;
 - ``glb``: binary glTF, a skinned mannequin with the SMPL-X skeleton and the animation
-  (:mod:`emogesture.export.gltf`), for Blender, three.js, Godot, Unity and Unreal.
+  (:mod:`emogesture.export.gltf`), for Blender, three.js, Godot, Unity and Unreal;
+- ``fbx``: the same character and animation as FBX, written by Blender (:mod:`emogesture.export.fbx`;
+  needs Blender), for Unity, Unreal, Maya and MotionBuilder.
 """
 
 from __future__ import annotations
@@ -19,18 +21,19 @@ import numpy as np
 
 from emogesture.errors import EmogestureError
 from emogesture.export.bvh import save_bvh, sequence_to_bvh
+from emogesture.export.fbx import save_fbx
 from emogesture.export.gltf import save_glb
 from emogesture.export.video import MannequinRenderer, save_mp4
 from emogesture.fileio import check_output
 from emogesture.motion import save_smplx_npz
 from emogesture.types import SMPLXSequence
 
-FORMATS = ("npz", "bvh", "mp4", "glb")
+FORMATS = ("npz", "bvh", "mp4", "glb", "fbx")
 #: what ``generate`` writes unless told otherwise
 DEFAULT_FORMATS = ("npz", "bvh", "mp4")
 
 __all__ = ["DEFAULT_FORMATS", "FORMATS", "MannequinRenderer", "export_paths", "export_sequence", "parse_formats",
-           "save_bvh", "save_glb", "save_mp4", "sequence_to_bvh"]
+           "save_bvh", "save_fbx", "save_glb", "save_mp4", "sequence_to_bvh"]
 
 
 def parse_formats(text: str) -> tuple[str, ...]:
@@ -68,6 +71,8 @@ def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tupl
             save_bvh(seq, path, overwrite=overwrite)
         elif fmt == "glb":
             save_glb(seq, path, overwrite=overwrite)
+        elif fmt == "fbx":
+            save_fbx(seq, path, overwrite=overwrite)
         else:
             save_mp4(seq, path, audio=audio, label=label, overwrite=overwrite, progress=progress)
         out.append(path)
