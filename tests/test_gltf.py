@@ -102,31 +102,37 @@ def test_khronos_validator_finds_nothing(tmp_path):
     assert (issues["numErrors"], issues["numWarnings"], issues["numInfos"]) == (0, 0, 0), issues["messages"][:5]
 
 
-@pytest.mark.slow
-def test_glb_in_real_blender(tmp_path):
+def read_in_blender(path, frames, first, tmp_path, seq):
+    """Import ``path`` into Debian's Blender (tests/blender/import_gltf.py) and check its armature: 55 bones by
+    the SMPL-X names, an action from scene frame ``first`` over every frame of ``seq``, a skinned mesh, and
+    the joints where our forward kinematics puts them (within 1 cm) at the scene ``frames``."""
     blender = shutil.which("blender")
     if blender is None:
         if os.environ.get("CI"):
             pytest.fail("blender is not installed (make test installs Debian's package)")
         pytest.skip("blender not installed (make test installs it)")
-    seq = gesture_like(frames=40, seed=3)
-    path = save_glb(seq, tmp_path / "g.glb")
-    out = tmp_path / "blender.json"
-    frames = [0, 9, 24, 39]
+    out = tmp_path / f"{path.name}.json"
     proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(ROOT / "tests" / "blender" /
                            "import_gltf.py"), "--", str(path), str(out), *map(str, frames)],
                           capture_output=True, text=True, timeout=300)
     assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
     got = json.loads(out.read_text())
     assert got["bones"] == 55 and set(got["names"]) == set(JOINT_NAMES)
-    assert got["action_frame_range"] == [0.0, 39.0] and got["skinned"]
-    assert got["vertices"] == len(mannequin_skin()["positions"])
+    assert got["action_frame_range"] == [first, first + seq.num_frames - 1] and got["skinned"]
     ours = fk(seq)
     for f in frames:
-        for name in ("right_wrist", "left_index3", "head"):
+        for name in ("right_wrist", "left_wrist", "left_index3", "head"):
             b = np.array(got["heads"][str(f)][name])  # Blender: Z up; ours: Y up -> (x, -z, y)
-            o = ours[f, JOINT_NAMES.index(name)]
+            o = ours[f - first, JOINT_NAMES.index(name)]
             assert np.linalg.norm(b - np.array([o[0], -o[2], o[1]])) < 0.01, (f, name)
+    return got
+
+
+@pytest.mark.slow
+def test_glb_in_real_blender(tmp_path):
+    seq = gesture_like(frames=40, seed=3)
+    got = read_in_blender(save_glb(seq, tmp_path / "g.glb"), [0, 9, 24, 39], 0, tmp_path, seq)
+    assert got["vertices"] == len(mannequin_skin(tuple(float(b) for b in seq.betas[:10]))["positions"])
 
 
 def test_glb_bytes_are_reproducible():
@@ -136,28 +142,8 @@ def test_glb_bytes_are_reproducible():
 
 @pytest.mark.slow
 def test_fbx_written_by_blender_reads_back_with_the_bones_frames_and_joints(tmp_path):
-    blender = shutil.which("blender")
-    if blender is None:
-        if os.environ.get("CI"):
-            pytest.fail("blender is not installed (make test installs Debian's package)")
-        pytest.skip("blender not installed (make test installs it)")
     seq = gesture_like(frames=40, seed=5)
-    path = save_fbx(seq, tmp_path / "f.fbx")
-    out = tmp_path / "blender.json"
-    frames = [1, 10, 25, 40]  # Blender's FBX importer starts at frame 1
-    proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(ROOT / "tests" / "blender" /
-                           "import_gltf.py"), "--", str(path), str(out), *map(str, frames)],
-                          capture_output=True, text=True, timeout=300)
-    assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
-    got = json.loads(out.read_text())
-    assert got["bones"] == 55 and set(got["names"]) == set(JOINT_NAMES)
-    assert got["action_frame_range"] == [1.0, 40.0] and got["skinned"]
-    ours = fk(seq)
-    for f in frames:
-        for name in ("right_wrist", "left_wrist", "left_index3", "head"):
-            b = np.array(got["heads"][str(f)][name])
-            o = ours[f - 1, JOINT_NAMES.index(name)]
-            assert np.linalg.norm(b - np.array([o[0], -o[2], o[1]])) < 0.01, (f, name)
+    read_in_blender(save_fbx(seq, tmp_path / "f.fbx"), [1, 10, 25, 40], 1, tmp_path, seq)  # FBX: from frame 1
 
 
 def test_fbx_without_blender_says_what_to_install(tmp_path, monkeypatch):
