@@ -14,9 +14,10 @@ import pytest
 import torch
 
 from emogesture.errors import EmogestureError
-from emogesture.export import save_fbx, save_glb
+from emogesture.export import export_sequence, save_fbx, save_glb
 from emogesture.export.gltf import mannequin_skin, sequence_to_gltf
 from emogesture.motion import JOINT_NAMES, SkeletonBody
+from emogesture.motion.rigs import RIGS
 from emogesture.motion.rotations import axis_angle_to_matrix
 
 from helpers import fk, gesture_like
@@ -102,28 +103,29 @@ def test_khronos_validator_finds_nothing(tmp_path):
     assert (issues["numErrors"], issues["numWarnings"], issues["numInfos"]) == (0, 0, 0), issues["messages"][:5]
 
 
-def read_in_blender(path, frames, first, tmp_path, seq):
-    """Import ``path`` into Debian's Blender (tests/blender/import_gltf.py) and check its armature: 55 bones by
-    the SMPL-X names, an action from scene frame ``first`` over every frame of ``seq``, a skinned mesh, and
-    the joints where our forward kinematics puts them (within 1 cm) at the scene ``frames``."""
+def read_in_blender(path, frames, first, tmp_path, seq, skeleton="smplx", script="import_gltf.py"):
+    """Import ``path`` into Debian's Blender (``tests/blender/<script>``) and check its armature: the bones of
+    ``skeleton`` by their names, an action from scene frame ``first`` over every frame of ``seq``, and every
+    bone's head where our forward kinematics puts its joint (within 1 cm) at the scene ``frames``, so that
+    every limb points where ours does."""
     blender = shutil.which("blender")
     if blender is None:
         if os.environ.get("CI"):
             pytest.fail("blender is not installed (make test installs Debian's package)")
         pytest.skip("blender not installed (make test installs it)")
     out = tmp_path / f"{path.name}.json"
-    proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(ROOT / "tests" / "blender" /
-                           "import_gltf.py"), "--", str(path), str(out), *map(str, frames)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(ROOT / "tests" / "blender" / script),
+                           "--", str(path), str(out), *map(str, frames)], capture_output=True, text=True, timeout=300)
     assert out.is_file(), proc.stdout[-2000:] + proc.stderr[-2000:]
     got = json.loads(out.read_text())
-    assert got["bones"] == 55 and set(got["names"]) == set(JOINT_NAMES)
-    assert got["action_frame_range"] == [first, first + seq.num_frames - 1] and got["skinned"]
+    rig = RIGS[skeleton]
+    assert got["bones"] == len(rig.joints) and set(got["names"]) == set(rig.names)
+    assert got["action_frame_range"] == [first, first + seq.num_frames - 1]
     ours = fk(seq)
     for f in frames:
-        for name in ("right_wrist", "left_wrist", "left_index3", "head"):
+        for name, j in zip(rig.names, rig.joints):
             b = np.array(got["heads"][str(f)][name])  # Blender: Z up; ours: Y up -> (x, -z, y)
-            o = ours[f - first, JOINT_NAMES.index(name)]
+            o = ours[f - first, j]
             assert np.linalg.norm(b - np.array([o[0], -o[2], o[1]])) < 0.01, (f, name)
     return got
 
@@ -132,7 +134,7 @@ def read_in_blender(path, frames, first, tmp_path, seq):
 def test_glb_in_real_blender(tmp_path):
     seq = gesture_like(frames=40, seed=3)
     got = read_in_blender(save_glb(seq, tmp_path / "g.glb"), [0, 9, 24, 39], 0, tmp_path, seq)
-    assert got["vertices"] == len(mannequin_skin(tuple(float(b) for b in seq.betas[:10]))["positions"])
+    assert got["skinned"] and got["vertices"] == len(mannequin_skin(tuple(float(b) for b in seq.betas[:10]))["positions"])
 
 
 def test_glb_bytes_are_reproducible():
@@ -143,7 +145,38 @@ def test_glb_bytes_are_reproducible():
 @pytest.mark.slow
 def test_fbx_written_by_blender_reads_back_with_the_bones_frames_and_joints(tmp_path):
     seq = gesture_like(frames=40, seed=5)
-    read_in_blender(save_fbx(seq, tmp_path / "f.fbx"), [1, 10, 25, 40], 1, tmp_path, seq)  # FBX: from frame 1
+    got = read_in_blender(save_fbx(seq, tmp_path / "f.fbx"), [1, 10, 25, 40], 1, tmp_path, seq)  # FBX: from 1
+    assert got["skinned"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fmt", ["bvh", "glb", "fbx"])
+def test_the_mixamo_rig_has_mixamo_bones_pointing_where_ours_do(tmp_path, fmt):
+    """Mixamo's 52 bones by Mixamo's names, each limb (elbow -> wrist, say) pointing where ours does: every bone's
+    head within 1 cm of our joint, in the file as Blender imports it."""
+    seq = gesture_like(frames=30, seed=6)
+    path = export_sequence(seq, tmp_path / "m", (fmt,), skeleton="mixamo")[0]
+    first = 0 if fmt == "glb" else 1
+    script = "import_bvh.py" if fmt == "bvh" else "import_gltf.py"
+    got = read_in_blender(path, [first, first + 13, first + 29], first, tmp_path, seq, "mixamo", script)
+    assert "mixamorig:LeftForeArm" in got["names"] and "mixamorig:RightHandThumb3" in got["names"]
+
+
+def test_mixamo_names_and_hierarchy():
+    rig = RIGS["mixamo"]
+    parent = {rig.names[b]: rig.names[p] if p >= 0 else None for b, p in enumerate(rig.parents)}
+    m = "mixamorig:"
+    chains = [["Hips", "Spine", "Spine1", "Spine2", "Neck", "Head"],
+              ["Spine2", "LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand", "LeftHandIndex1", "LeftHandIndex2"],
+              ["Spine2", "RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightHandThumb1"],
+              ["Hips", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"]]
+    for chain in chains:
+        for up, down in zip(chain, chain[1:]):
+            assert parent[m + down] == m + up
+    assert len(rig.names) == 52 and parent[m + "Hips"] is None
+    with pytest.raises(EmogestureError, match="--skeleton 'unreal': choose smplx or mixamo"):
+        export_sequence(gesture_like(frames=3), Path("/nonexistent/x"), ("bvh",), skeleton="unreal")
+    assert not Path("/nonexistent").exists()
 
 
 def test_fbx_without_blender_says_what_to_install(tmp_path, monkeypatch):

@@ -33,6 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--style-from", type=Path, metavar="WAV", help="take the speaker style from this recording")
     p.add_argument("--format", default="npz,bvh,mp4",
                    help="comma-separated output formats: npz, bvh, mp4, glb, fbx (fbx needs Blender; default npz,bvh,mp4)")
+    p.add_argument("--skeleton", default="smplx", choices=["smplx", "mixamo"],
+                   help="bones of the bvh, glb and fbx files: smplx (55, SMPL-X names; default) or mixamo (52, "
+                        "Mixamo's names, for game engines' humanoid rigs)")
     p.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
     p.add_argument("--seam-candidates", type=int, default=None,
@@ -56,6 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("npz", type=Path, help="an SMPL-X animation in BEAT2's .npz format")
     p.add_argument("--format", default="bvh,mp4", help="comma-separated: npz, bvh, glb, fbx, mp4 (default bvh,mp4)")
     p.add_argument("--audio", type=Path, metavar="WAV", help="speech to put into the video")
+    p.add_argument("--skeleton", default="smplx", choices=["smplx", "mixamo"],
+                   help="bones of the bvh, glb and fbx files: smplx (default) or mixamo")
     p.add_argument("-o", "--out", type=Path, help="output folder (default: beside the npz)")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -72,7 +77,7 @@ def run_generate(args: argparse.Namespace) -> int:
                                 emotion_weight=args.emotion_weight, emotion_from=args.emotion_from,
                                 style_from=args.style_from, formats=args.format, seed=args.seed, samples=args.samples,
                                 seam_candidates=args.seam_candidates, overwrite=args.overwrite,
-                                skip_existing=args.skip_existing)
+                                skip_existing=args.skip_existing, skeleton=args.skeleton)
     speeches = speech_files(args.speech)
     if args.no_acceleration:
         set_acceleration(False)
@@ -107,5 +112,6 @@ def run_export(args: argparse.Namespace) -> int:
     label = args.npz.name + (f"\naudio: {args.audio.name}" if args.audio else "")
     export_sequence(seq, out / args.npz.stem, formats, audio=audio, label=label, overwrite=args.overwrite,
                     progress=not args.quiet and sys.stderr.isatty(),
-                    written=lambda path: print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)"))
+                    written=lambda path: print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)"),
+                    skeleton=args.skeleton)
     return 0

@@ -26,6 +26,7 @@ from emogesture.export.gltf import save_glb
 from emogesture.export.video import MannequinRenderer, save_mp4
 from emogesture.fileio import check_output
 from emogesture.motion import save_smplx_npz
+from emogesture.motion.rigs import rig_named
 from emogesture.types import SMPLXSequence
 
 FORMATS = ("npz", "bvh", "mp4", "glb", "fbx")
@@ -53,14 +54,16 @@ def export_paths(stem: str | PathLike[str], formats: tuple[str, ...]) -> dict[st
 
 def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tuple[str, ...] = FORMATS, *,
                     audio: tuple[np.ndarray, int] | None = None, label: str | Sequence[tuple[float, str]] = "",
-                    overwrite: bool = False,
-                    progress: bool = False, written: Callable[[Path], None] | None = None) -> list[Path]:
+                    overwrite: bool = False, progress: bool = False, written: Callable[[Path], None] | None = None,
+                    skeleton: str = "smplx") -> list[Path]:
     """Write ``seq`` as ``<stem>.<format>`` for each format; every target is checked before the first
     is written (so an existing file without ``overwrite`` leaves nothing new behind), and each file
     appears whole or not at all. ``audio = (waveform, rate)`` and ``label`` (a text, or ``(from seconds, text)``
     pairs) go into the video;
-    ``written(path)`` is called after each file."""
+    ``written(path)`` is called after each file. ``skeleton``: the bones of the bvh, glb and fbx files,
+    ``smplx`` or ``mixamo`` (:mod:`emogesture.motion.rigs`)."""
     paths = export_paths(stem, formats)
+    rig_named(skeleton)  # an unknown name is an error before anything is written
     for path in paths.values():
         check_output(path, overwrite)
     out = []
@@ -68,11 +71,11 @@ def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tupl
         if fmt == "npz":
             save_smplx_npz(seq, path, overwrite=overwrite)
         elif fmt == "bvh":
-            save_bvh(seq, path, overwrite=overwrite)
+            save_bvh(seq, path, overwrite=overwrite, skeleton=skeleton)
         elif fmt == "glb":
-            save_glb(seq, path, overwrite=overwrite)
+            save_glb(seq, path, overwrite=overwrite, skeleton=skeleton)
         elif fmt == "fbx":
-            save_fbx(seq, path, overwrite=overwrite)
+            save_fbx(seq, path, overwrite=overwrite, skeleton=skeleton)
         else:
             save_mp4(seq, path, audio=audio, label=label, overwrite=overwrite, progress=progress)
         out.append(path)

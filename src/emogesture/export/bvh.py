@@ -1,7 +1,8 @@
 """SMPL-X sequences as BVH motion capture files (Blender, Unity, Maya, MotionBuilder).
 
 The file's skeleton is the SMPL-X kinematic tree with SMPL-X joint names (``pelvis``, ``left_hip``,
-... ``right_thumb3``; all 55 joints) and the rest bone offsets of the body used
+... ``right_thumb3``; all 55 joints), or with ``skeleton="mixamo"`` Mixamo's 52 bones by Mixamo's names
+(:mod:`emogesture.motion.rigs`), and the rest bone offsets of the body used
 (:func:`emogesture.motion.rest_offsets` for the sequence's shape, the licence-free skeleton), so that
 joint world positions computed from the file equal :class:`emogesture.motion.SkeletonBody`'s.
 
@@ -29,37 +30,31 @@ import numpy as np
 import torch
 
 from emogesture.fileio import atomic_output
-from emogesture.motion import JOINT_NAMES, PARENTS, axis_angle_to_matrix, matrix_to_euler_zyx, rest_joints
-from emogesture.types import NUM_JOINTS, SMPLXSequence
+from emogesture.motion import PARENTS, axis_angle_to_matrix, matrix_to_euler_zyx, rest_joints
+from emogesture.motion.rigs import RIGS, Rig, rig_named
+from emogesture.types import SMPLXSequence
 
 ROOT_CHANNELS = "Xposition Yposition Zposition Zrotation Yrotation Xrotation"
 JOINT_CHANNELS = "Zrotation Yrotation Xrotation"
 
 
-def _children() -> list[list[int]]:
-    kids: list[list[int]] = [[] for _ in range(NUM_JOINTS)]
-    for j in range(1, NUM_JOINTS):
-        kids[PARENTS[j]].append(j)
-    return kids
-
-
-def bvh_hierarchy(offsets: np.ndarray) -> tuple[str, list[int]]:
+def bvh_hierarchy(offsets: np.ndarray, rig: Rig = RIGS["smplx"]) -> tuple[str, list[int]]:
     """The ``HIERARCHY`` section for rest ``offsets [55, 3]`` (row 0 ignored: the root's is 0) and the
-    order in which the joints' channels appear in a MOTION line (depth first, SMPL-X child order)."""
-    kids = _children()
+    SMPL-X joints whose channels appear in a MOTION line, in order (depth first, SMPL-X child order)."""
     lines, order = ["HIERARCHY"], []
 
-    def joint(j: int, depth: int) -> None:
+    def joint(b: int, depth: int) -> None:
+        j = rig.joints[b]
         pad = "  " * depth
-        head = "ROOT" if j == 0 else "JOINT"
-        off = np.zeros(3) if j == 0 else offsets[j]
-        lines.extend([f"{pad}{head} {JOINT_NAMES[j]}", f"{pad}{{",
+        head = "ROOT" if b == 0 else "JOINT"
+        off = np.zeros(3) if b == 0 else offsets[j]
+        lines.extend([f"{pad}{head} {rig.names[b]}", f"{pad}{{",
                       f"{pad}  OFFSET {off[0]:.6f} {off[1]:.6f} {off[2]:.6f}",
-                      f"{pad}  CHANNELS {6 if j == 0 else 3} {ROOT_CHANNELS if j == 0 else JOINT_CHANNELS}"])
+                      f"{pad}  CHANNELS {6 if b == 0 else 3} {ROOT_CHANNELS if b == 0 else JOINT_CHANNELS}"])
         order.append(j)
-        for k in kids[j]:
+        for k in rig.children(b):
             joint(k, depth + 1)
-        if not kids[j]:
+        if not rig.children(b):
             end = 0.5 * offsets[j]
             lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {end[0]:.6f} {end[1]:.6f} {end[2]:.6f}",
                           f"{pad}  }}"])
@@ -70,7 +65,7 @@ def bvh_hierarchy(offsets: np.ndarray) -> tuple[str, list[int]]:
 
 
 def bvh_channels(seq: SMPLXSequence, order: list[int], root_rest: np.ndarray) -> np.ndarray:
-    """The MOTION values ``[T, 3 + 3 * 55]``: root position (m), then per joint in ``order`` its
+    """The MOTION values ``[T, 3 + 3 * len(order)]``: root position (m), then per joint in ``order`` its
     ``(Z, Y, X)`` Euler angles in degrees."""
     with torch.no_grad():
         rot = axis_angle_to_matrix(torch.from_numpy(seq.poses.astype(np.float64)))
@@ -79,12 +74,13 @@ def bvh_channels(seq: SMPLXSequence, order: list[int], root_rest: np.ndarray) ->
     return np.concatenate([position, euler[:, order].reshape(seq.num_frames, -1)], axis=1)
 
 
-def sequence_to_bvh(seq: SMPLXSequence) -> str:
-    """The whole BVH text of ``seq`` (see the module docstring for its conventions)."""
+def sequence_to_bvh(seq: SMPLXSequence, skeleton: str = "smplx") -> str:
+    """The whole BVH text of ``seq`` with the bones of ``skeleton`` (``smplx`` or ``mixamo``; see the module
+    docstring for its conventions)."""
     joints = rest_joints(seq.betas)
     offsets = joints.copy()
     offsets[1:] = joints[1:] - joints[np.asarray(PARENTS[1:])]
-    hierarchy, order = bvh_hierarchy(offsets)
+    hierarchy, order = bvh_hierarchy(offsets, rig_named(skeleton))
     values = bvh_channels(seq, order, joints[0].astype(np.float64))
     out = io.StringIO()
     out.write(hierarchy)
@@ -93,9 +89,11 @@ def sequence_to_bvh(seq: SMPLXSequence) -> str:
     return out.getvalue()
 
 
-def save_bvh(seq: SMPLXSequence, path: str | PathLike[str], overwrite: bool = False) -> Path:
-    """Write ``seq`` as a BVH file, atomically; refuses an existing file unless ``overwrite``."""
-    text = sequence_to_bvh(seq)
+def save_bvh(seq: SMPLXSequence, path: str | PathLike[str], overwrite: bool = False,
+             skeleton: str = "smplx") -> Path:
+    """Write ``seq`` as a BVH file with the bones of ``skeleton``, atomically; refuses an existing file
+    unless ``overwrite``."""
+    text = sequence_to_bvh(seq, skeleton)
     with atomic_output(path, overwrite) as tmp:
         tmp.write_text(text)
     return Path(path)

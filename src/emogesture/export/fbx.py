@@ -3,7 +3,8 @@ Maya, MotionBuilder and 3ds Max.
 
 The sequence is written as glTF (:mod:`emogesture.export.gltf`) and converted by Blender's own importer and
 FBX exporter, run headless (``blender -b``): 55 bones with SMPL-X names (no leaf bones), the mannequin
-skinned to them, the animation baked at every frame; metres, Y up, -Z forward. Blender is needed only for
+skinned to them, the animation baked at every frame; metres, Y up, -Z forward (or Mixamo's 52 bones by
+Mixamo's names). Blender is needed only for
 this format: ``blender`` on ``PATH`` (Debian: ``apt-get install blender python3-numpy``; or blender.org), or
 its path in ``EMOGESTURE_BLENDER``. Blender's FBX importer puts the first frame at frame 1.
 """
@@ -38,13 +39,14 @@ def blender_binary() -> str:
     return found
 
 
-def save_fbx(seq: SMPLXSequence, path: str | PathLike[str], *, overwrite: bool = False) -> Path:
-    """Write ``seq`` as FBX through Blender (module docstring), atomically; refuses an existing file unless
-    ``overwrite``."""
+def save_fbx(seq: SMPLXSequence, path: str | PathLike[str], *, overwrite: bool = False,
+             skeleton: str = "smplx") -> Path:
+    """Write ``seq`` as FBX with the bones of ``skeleton`` (``smplx`` or ``mixamo``) through Blender (module
+    docstring), atomically; refuses an existing file unless ``overwrite``."""
     check_output(path, overwrite)
     blender = blender_binary()
     with tempfile.TemporaryDirectory(prefix="emogesture-fbx-") as work, atomic_output(path, overwrite) as tmp:
-        glb = save_glb(seq, Path(work) / f"{Path(path).stem}.glb")
+        glb = save_glb(seq, Path(work) / f"{Path(path).stem}.glb", skeleton=skeleton)
         try:
             proc = subprocess.run([blender, "-b", "--factory-startup", "--python", str(SCRIPT), "--", str(glb),
                                    str(tmp), f"{float(seq.fps):g}"], capture_output=True, text=True,

@@ -3,7 +3,8 @@ Unity (with a glTF importer such as glTFast) and Unreal (glTF import).
 
 The file holds one scene:
 
-- the SMPL-X skeleton, one node per joint named as in :data:`~emogesture.motion.JOINT_NAMES`, each at its
+- the SMPL-X skeleton, one node per joint named as in :data:`~emogesture.motion.JOINT_NAMES` (or with
+  ``skeleton="mixamo"`` Mixamo's 52 bones by Mixamo's names, :mod:`emogesture.motion.rigs`), each at its
   rest offset from its parent (the rest skeleton of :class:`~emogesture.motion.SkeletonBody`, so the file's
   joints are where our forward kinematics puts them), with no rest rotation;
 - the ``mannequin-x`` wooden mannequin (Apache-2.0; 24 k vertices) skinned to it, four joints per vertex
@@ -27,7 +28,8 @@ import torch
 
 from emogesture.errors import EmogestureError
 from emogesture.fileio import atomic_output
-from emogesture.motion import JOINT_NAMES, PARENTS, rest_joints, rest_offsets
+from emogesture.motion import JOINT_NAMES, rest_joints, rest_offsets
+from emogesture.motion.rigs import rig_named
 from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
 from emogesture.motion.skeleton import MANNEQUIN_TO_SMPLX
 from emogesture.types import SMPLXSequence
@@ -113,8 +115,11 @@ class _Buffer:
         return len(self.accessors) - 1
 
 
-def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture") -> tuple[dict, bytes]:
-    """The glTF JSON and its binary buffer for ``seq`` (module docstring)."""
+def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture", skeleton: str = "smplx") -> tuple[dict, bytes]:
+    """The glTF JSON and its binary buffer for ``seq`` with the bones of ``skeleton`` (module docstring)."""
+    rig = rig_named(skeleton)
+    bone_of = np.full(len(JOINT_NAMES), -1)
+    bone_of[list(rig.joints)] = np.arange(len(rig.joints))
     shape = tuple(float(b) for b in np.pad(np.asarray(seq.betas, np.float32).reshape(-1)[:10],
                                            (0, max(0, 10 - np.asarray(seq.betas).size))))
     skin = mannequin_skin(shape)
@@ -123,31 +128,32 @@ def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture") -> tuple[dict
     mesh_attributes = {
         "POSITION": buf.add(skin["positions"], "VEC3", _FLOAT, _ARRAY_BUFFER, bounds=True),
         "NORMAL": buf.add(skin["normals"], "VEC3", _FLOAT, _ARRAY_BUFFER),
-        "JOINTS_0": buf.add(skin["joints"], "VEC4", _UBYTE, _ARRAY_BUFFER),
+        "JOINTS_0": buf.add(bone_of[skin["joints"]].astype(np.uint8), "VEC4", _UBYTE, _ARRAY_BUFFER),
         "WEIGHTS_0": buf.add(skin["weights"], "VEC4", _FLOAT, _ARRAY_BUFFER),
     }
     indices = buf.add(skin["indices"], "SCALAR", _USHORT, _ELEMENT_ARRAY_BUFFER)
     # joint j's rest world transform is a translation to rest[j]; its inverse, column-major
-    inverse_bind = np.tile(np.eye(4, dtype=np.float32), (len(JOINT_NAMES), 1, 1))
-    inverse_bind[:, :3, 3] = -rest
-    ibm = buf.add(inverse_bind.transpose(0, 2, 1).reshape(len(JOINT_NAMES), 16), "MAT4", _FLOAT)
+    bones = len(rig.joints)
+    inverse_bind = np.tile(np.eye(4, dtype=np.float32), (bones, 1, 1))
+    inverse_bind[:, :3, 3] = -rest[list(rig.joints)]
+    ibm = buf.add(inverse_bind.transpose(0, 2, 1).reshape(bones, 16), "MAT4", _FLOAT)
 
     frames = seq.num_frames
     times = buf.add((np.arange(frames) / float(seq.fps)).astype(np.float32), "SCALAR", _FLOAT, bounds=True)
     rotations = sequence_rotations(seq)
     channels, samplers = [], []
-    for j in range(len(JOINT_NAMES)):
+    for b, j in enumerate(rig.joints):
         samplers.append({"input": times, "output": buf.add(rotations[:, j], "VEC4", _FLOAT),
                          "interpolation": "LINEAR"})
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": b, "path": "rotation"}})
     root = (rest[0][None] + np.asarray(seq.trans, np.float32)).astype(np.float32)
     samplers.append({"input": times, "output": buf.add(root, "VEC3", _FLOAT), "interpolation": "LINEAR"})
     channels.append({"sampler": len(samplers) - 1, "target": {"node": 0, "path": "translation"}})
 
     nodes = []
-    for j, joint in enumerate(JOINT_NAMES):
-        node = {"name": joint, "translation": offsets[j].astype(float).tolist()}
-        children = [c for c, p in enumerate(PARENTS) if p == j]
+    for b, j in enumerate(rig.joints):
+        node = {"name": rig.names[b], "translation": offsets[j].astype(float).tolist()}
+        children = rig.children(b)
         if children:
             node["children"] = children
         nodes.append(node)
@@ -161,7 +167,7 @@ def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture") -> tuple[dict
                                                           "material": 0, "mode": _TRIANGLES}]}],
         "materials": [{"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": list(WOOD), "metallicFactor": 0.0,
                                                                 "roughnessFactor": 0.7}}],
-        "skins": [{"name": "smplx", "joints": list(range(len(JOINT_NAMES))), "skeleton": 0,
+        "skins": [{"name": rig.name, "joints": list(range(bones)), "skeleton": 0,
                    "inverseBindMatrices": ibm}],
         "animations": [{"name": name, "channels": channels, "samplers": samplers}],
         "accessors": buf.accessors,
@@ -181,10 +187,11 @@ def glb_bytes(gltf: dict, binary: bytes) -> bytes:
             + struct.pack("<I4s", len(binary), b"BIN\0") + binary)
 
 
-def save_glb(seq: SMPLXSequence, path: str | PathLike[str], *, overwrite: bool = False) -> Path:
-    """Write ``seq`` as a binary glTF file (module docstring), atomically; refuses an existing file
-    unless ``overwrite``."""
-    data = glb_bytes(*sequence_to_gltf(seq, Path(path).stem))
+def save_glb(seq: SMPLXSequence, path: str | PathLike[str], *, overwrite: bool = False,
+             skeleton: str = "smplx") -> Path:
+    """Write ``seq`` as a binary glTF file with the bones of ``skeleton`` (module docstring), atomically;
+    refuses an existing file unless ``overwrite``."""
+    data = glb_bytes(*sequence_to_gltf(seq, Path(path).stem, skeleton))
     with atomic_output(path, overwrite) as tmp:
         tmp.write_bytes(data)
     return Path(path)

@@ -27,6 +27,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
 from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, parse_formats
 from emogesture.fileio import atomic_output, check_output
+from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
 from emogesture.pipeline.postprocess import candidates_drawn
@@ -77,6 +78,8 @@ class AnimationRequest:
     #: output exists): how an interrupted batch resumes; generation is reproducible, so they are the files
     #: an uninterrupted run writes
     skip_existing: bool = False
+    #: the bones of the bvh, glb and fbx files: ``smplx`` or ``mixamo`` (:mod:`emogesture.motion.rigs`)
+    skeleton: str = "smplx"
     mode: str = field(init=False, default="auto")  # auto / own, from ``emotion``
     label: str | None = field(init=False, default=None)  # the label edited toward, from ``emotion``
     timeline: EmotionTimeline | None = field(init=False, default=None)  # keyframes, from ``emotion``
@@ -113,6 +116,7 @@ class AnimationRequest:
             raise EmogestureError("--seam-candidates must be at least 1")
         if self.out.exists() and not self.out.is_dir():
             raise EmogestureError(f"{self.out}: is a file; --out must be a folder")
+        rig_named(self.skeleton)
         if self.overwrite and self.skip_existing:
             raise EmogestureError("--overwrite and --skip-existing: choose one")
 
@@ -242,7 +246,7 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
         done = None if written is None else (lambda path, seq=seq: written(path, seq))
         files.append(export_sequence(seq, stem, formats[k], audio=(wave, TARGET_SAMPLE_RATE),
                                      label=request.video_label(k), overwrite=request.overwrite, progress=progress,
-                                     written=done) if formats[k] else [])
+                                     written=done, skeleton=request.skeleton) if formats[k] else [])
     if not (request.skip_existing and perception_path.exists()):
         with atomic_output(perception_path, request.overwrite) as tmp:
             tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
