@@ -9,10 +9,11 @@ PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
 # exports (its glTF importer needs python3-numpy); pocketsphinx-testdata holds real recorded speech for the
-# real-speech checks; Khronos' glTF-Validator (npm, into build/node) checks the glb files
+# real-speech checks; Khronos' glTF-Validator (npm, into build/node) checks the glb files; chromium and its
+# driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
-	pocketsphinx-testdata
+	pocketsphinx-testdata chromium chromium-driver
 GLTF_VALIDATOR := build/node/node_modules/gltf-validator/package.json
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo
@@ -73,7 +74,7 @@ $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
-	$(PY) -m pip install -q -e '.[train,test]'
+	$(PY) -m pip install -q -e '.[train,test,app]'
 	touch $@
 
 lint: setup

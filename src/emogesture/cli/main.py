@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from emogesture import __version__
-from emogesture.cli import data_commands, eval_commands, generate_commands, train_commands
+from emogesture.cli import app_commands, data_commands, eval_commands, generate_commands, train_commands
 from emogesture.errors import EmogestureError
 
 
@@ -21,6 +21,7 @@ def build_parser() -> argparse.ArgumentParser:
     train_commands.register(sub)
     eval_commands.register(sub)
     generate_commands.register(sub)
+    app_commands.register(sub)
     return parser
 
 

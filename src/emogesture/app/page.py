@@ -1,0 +1,158 @@
+"""The page of ``emogesture app`` (module docstring of :mod:`emogesture.app`)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import tempfile
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+import soundfile as sf
+
+from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
+from emogesture.data.beat import EMOTIONS
+from emogesture.errors import EmogestureError
+from emogesture.export.fbx import blender_binary
+from emogesture.pipeline.animate import AnimationRequest, animate
+from emogesture.pipeline.generate import GesturePipeline
+
+VIEWER_JS = (Path(__file__).with_name("viewer.js")).read_text()
+VIEWER_HTML = """<div class="emogesture-viewer">
+<canvas style="width:100%;height:420px;display:block;border-radius:8px;cursor:grab"></canvas>
+<audio controls preload="auto" style="width:100%;margin-top:6px"></audio>
+<div class="status" style="font-size:0.9em;opacity:0.75">the animation appears here</div>
+</div>"""
+EMOTION_CHOICES = ["auto", "own", *EMOTIONS]
+INTRO = """# emogesture
+Speech to emotional 3D body gestures. Give a recording of someone speaking; get a 30 fps animation whose
+gestures follow the speech and express an emotion: the speech's own (`auto`, `own`), one you choose, one taken
+from a second recording, or a timeline such as `0:neutral,12:anger,30:sadness@0.5` (seconds)."""
+
+
+def _file_url(path: Path) -> str:
+    return f"/gradio_api/file={path}"
+
+
+def _fbx_available() -> bool:
+    try:
+        blender_binary()
+        return True
+    except EmogestureError:
+        return False
+
+
+def perception_rows(report: dict) -> list[list]:
+    """The rows of the page's perception table from one recording's perception report."""
+    rows = []
+    for w in report["windows"]:
+        probability = w["probabilities"][w["emotion"]]
+        animated = ", ".join(f"{k} {v:.0%}" for k, v in w.get("animated_emotion", {}).items())
+        trust = f"{w['trust']:.2f}" if "trust" in w else "-"
+        rows.append([f"{w['start_s']:.0f}-{w['end_s']:.0f} s", w["emotion"], f"{probability:.2f}", trust, animated])
+    return rows
+
+
+class AppSession:
+    """What the page's button runs: one pipeline for every request (one request at a time), each request
+    written into a new folder of ``workdir``."""
+
+    def __init__(self, pipe: GesturePipeline, workdir: Path) -> None:
+        self.pipe, self.workdir = pipe, Path(workdir)
+        self.lock = threading.Lock()
+        self.formats = ("npz", "bvh", "glb", "mp4") + (("fbx",) if _fbx_available() else ())
+
+    def run(self, speech: str | None, emotion: str, timeline: str, weight: float, emotion_from: str | None,
+            style_from: str | None, seed: float, samples: float, skeleton: str) -> tuple:
+        """The page's inputs -> (video, 3D view value, perception rows, summary, files). A bad input raises
+        :class:`EmogestureError` with the message the page shows."""
+        if not speech:
+            raise EmogestureError("upload or record some speech first")
+        timeline = (timeline or "").strip()
+        label_given = emotion not in ("auto", "own") or emotion_from
+        request_emotion = timeline or emotion
+        out = Path(tempfile.mkdtemp(prefix="request-", dir=self.workdir))
+        request = AnimationRequest(
+            Path(speech), out, emotion=request_emotion,
+            emotion_weight=float(weight) if (label_given and not timeline and float(weight) < 1.0) else None,
+            emotion_from=Path(emotion_from) if emotion_from and not timeline else None,
+            style_from=Path(style_from) if style_from else None, formats=self.formats, seed=int(seed),
+            samples=int(samples), skeleton=skeleton)
+        if request.label is not None and emotion_from:
+            raise EmogestureError("choose an emotion label or an emotion recording, not both")
+        with self.lock:
+            result = animate(self.pipe, request, progress=True)
+        listen = out / "speech.wav"  # what the 3D view plays with the animation
+        sf.write(listen, load_audio(request.speech)[0], TARGET_SAMPLE_RATE, subtype="PCM_16")
+        first = result.files[0]
+        video = next(p for p in first if p.suffix == ".mp4")
+        glb = next(p for p in first if p.suffix == ".glb")
+        report = json.loads(result.perception_path.read_text())[0]
+        files = [str(p) for sample in result.files for p in sample] + [str(result.perception_path)]
+        note = "" if "fbx" in self.formats else " (fbx needs Blender on the server)"
+        summaries = [line.replace(str(request.speech), request.speech.name) for line in result.summaries]
+        if request.emotion_from is not None:
+            summaries = [line.replace(str(request.emotion_from), request.emotion_from.name) for line in summaries]
+        return (str(video), {"glb": _file_url(glb), "audio": _file_url(listen)}, perception_rows(report),
+                "\n\n".join(summaries) + note, files)
+
+
+def build_app(session: AppSession):
+    """The Gradio page (a ``gr.Blocks``) around ``session``."""
+    import gradio as gr
+
+    def run(*inputs, progress=gr.Progress(track_tqdm=True)):
+        try:
+            return session.run(*inputs)
+        except EmogestureError as e:
+            raise gr.Error(str(e), print_exception=False) from None
+
+    with gr.Blocks(title="emogesture") as page:
+        gr.Markdown(INTRO)
+        with gr.Row():
+            with gr.Column(scale=1):
+                speech = gr.Audio(sources=["upload", "microphone"], type="filepath", label="speech", elem_id="speech")
+                emotion = gr.Radio(EMOTION_CHOICES, value="auto", label="emotion")
+                timeline = gr.Textbox(label="or an emotion timeline (TIME:LABEL[@WEIGHT], seconds)",
+                                      placeholder="0:neutral,12:anger,30:sadness@0.5")
+                weight = gr.Slider(0.0, 1.0, value=1.0, step=0.05, label="weight of the chosen emotion")
+                with gr.Accordion("from other recordings, seed, samples, skeleton", open=False):
+                    emotion_from = gr.Audio(sources=["upload"], type="filepath", label="emotion from this recording")
+                    style_from = gr.Audio(sources=["upload"], type="filepath",
+                                          label="speaker style from this recording")
+                    seed = gr.Number(value=0, precision=0, label="seed")
+                    samples = gr.Slider(1, 4, value=1, step=1, label="samples")
+                    skeleton = gr.Radio(["smplx", "mixamo"], value="smplx", label="skeleton of bvh, glb, fbx")
+                button = gr.Button("Animate", variant="primary", elem_id="animate")
+            with gr.Column(scale=2):
+                video = gr.Video(label="video", elem_id="video")
+                viewer = gr.HTML(value={}, html_template=VIEWER_HTML, js_on_load=VIEWER_JS, elem_id="viewer",
+                                 label="3D view")
+                summary = gr.Markdown(elem_id="summary")
+                table = gr.Dataframe(headers=["window", "heard", "probability", "trust", "animated"],
+                                     label="emotion perceived in each window", elem_id="perception")
+                files = gr.File(file_count="multiple", label="downloads", elem_id="downloads")
+        button.click(run, [speech, emotion, timeline, weight, emotion_from, style_from, seed, samples, skeleton],
+                     [video, viewer, table, summary, files], concurrency_limit=1)
+    return page
+
+
+def serve(pipe_factory: Callable[[], GesturePipeline], host: str = "127.0.0.1", port: int = 7860,
+          workdir: str | Path | None = None, quiet: bool = False) -> None:
+    """Build the page on the pipeline ``pipe_factory()`` and serve it on ``host:port`` until interrupted;
+    requests write into ``workdir`` (default: a new temporary folder, removed when the server stops)."""
+    if importlib.util.find_spec("gradio") is None:
+        raise EmogestureError("emogesture app needs Gradio: pip install 'emogesture[app]' (or pip install gradio)")
+    owned = workdir is None
+    work = Path(tempfile.mkdtemp(prefix="emogesture-app-")) if owned else Path(workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    try:
+        page = build_app(AppSession(pipe_factory(), work))
+        page.queue(default_concurrency_limit=1)
+        page.launch(server_name=host, server_port=port, share=False, allowed_paths=[str(work)], quiet=quiet,
+                    show_error=True, footer_links=[])
+    finally:
+        if owned:
+            shutil.rmtree(work, ignore_errors=True)
