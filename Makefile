@@ -9,12 +9,12 @@ PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
 # exports (its glTF importer needs python3-numpy); pocketsphinx-testdata holds real recorded speech for the
-# real-speech checks; Khronos' glTF-Validator (npm, into build/node) checks the glb files; chromium and its
+# real-speech checks; Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
 # driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
 	pocketsphinx-testdata chromium chromium-driver
-GLTF_VALIDATOR := build/node/node_modules/gltf-validator/package.json
+GLTF_VALIDATOR := build/node/node_modules/three/package.json
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo
 DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \
@@ -67,7 +67,7 @@ apt-test:
 $(GLTF_VALIDATOR):
 	@command -v npm >/dev/null || { SUDO=""; [ "$$(id -u)" = 0 ] || SUDO=sudo; \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq nodejs npm >/dev/null; }
-	npm install --prefix build/node --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10
+	npm install --prefix build/node --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10 three@0.170.0
 
 # The CPU build of torch first (pinned), so the package's torch range adds nothing.
 $(VENV)/.installed: pyproject.toml

@@ -137,6 +137,30 @@ def test_glb_in_real_blender(tmp_path):
     assert got["skinned"] and got["vertices"] == len(mannequin_skin(tuple(float(b) for b in seq.betas[:10]))["positions"])
 
 
+def test_three_js_plays_it_with_every_joint_where_ours_is(tmp_path):
+    """three.js's GLTFLoader and AnimationMixer (what a web page uses) put every bone where our forward
+    kinematics puts its joint (within 1 mm), at the first, a middle and the last frame."""
+    node = _validator()
+    three = ROOT / "build" / "node" / "node_modules" / "three"
+    if not three.is_dir():
+        if os.environ.get("CI"):
+            pytest.fail("three.js is missing (make test installs it into build/node)")
+        pytest.skip("three.js is missing (make test installs it)")
+    seq = gesture_like(frames=45, seed=7)
+    path = save_glb(seq, tmp_path / "t.glb")
+    times = ["0", "0.5", "1.4666667"]  # frames 0, 15 and 44
+    proc = subprocess.run([node, str(ROOT / "tests" / "node" / "three_pose.mjs"), str(three.parent), str(path), *times],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)
+    assert got["bones"] == 55 and got["skinned"] == 1 and got["duration"] == pytest.approx(44 / 30, abs=1e-4)
+    ours = fk(seq)
+    for t in times:
+        frame = round(float(t) * 30)
+        for name, position in got["poses"][t].items():
+            assert np.linalg.norm(np.array(position) - ours[frame, JOINT_NAMES.index(name)]) < 1e-3, (t, name)
+
+
 def test_glb_bytes_are_reproducible():
     seq = gesture_like(frames=10, seed=1)
     assert sequence_to_gltf(seq)[1] == sequence_to_gltf(seq)[1]

@@ -1,0 +1,27 @@
+// node three_pose.mjs NODE_MODULES FILE.glb TIME...: plays FILE's animation with three.js (GLTFLoader,
+// AnimationMixer) and prints, as JSON, every bone's world position at each TIME (seconds) and the clip's length.
+import fs from "fs";
+import {pathToFileURL} from "url";
+
+const [modules, file, ...times] = process.argv.slice(2);
+const THREE = await import(pathToFileURL(`${modules}/three/build/three.module.js`).href);
+const {GLTFLoader} = await import(pathToFileURL(`${modules}/three/examples/jsm/loaders/GLTFLoader.js`).href);
+const data = fs.readFileSync(file);
+const buffer = data.buffer.slice(data.byteOffset, data.byteOffset + data.byteLength);
+new GLTFLoader().parse(buffer, "", (gltf) => {
+  const mixer = new THREE.AnimationMixer(gltf.scene);
+  const action = mixer.clipAction(gltf.animations[0]);
+  action.setLoop(THREE.LoopOnce);  // the last frame at the clip's end, not the first again
+  action.clampWhenFinished = true;
+  action.play();
+  const skinned = [];
+  gltf.scene.traverse((o) => { if (o.isSkinnedMesh) skinned.push(o); });
+  const bones = skinned[0].skeleton.bones;
+  const out = {duration: gltf.animations[0].duration, bones: bones.length, skinned: skinned.length, poses: {}};
+  for (const t of times) {
+    mixer.setTime(Number(t));
+    gltf.scene.updateMatrixWorld(true);
+    out.poses[t] = Object.fromEntries(bones.map((b) => [b.name, b.getWorldPosition(new THREE.Vector3()).toArray()]));
+  }
+  console.log(JSON.stringify(out));
+}, (error) => { console.error(`three.js could not load ${file}: ${error}`); process.exit(2); });
