@@ -121,12 +121,16 @@ def read_in_blender(path, frames, first, tmp_path, seq, skeleton="smplx", script
     rig = RIGS[skeleton]
     assert got["bones"] == len(rig.joints) and set(got["names"]) == set(rig.names)
     assert got["action_frame_range"] == [first, first + seq.num_frames - 1]
-    ours = fk(seq)
+    ours = fk(seq)[:, :, [0, 2, 1]] * [1, -1, 1]  # Blender: Z up; ours: Y up -> (x, -z, y)
     for f in frames:
-        for name, j in zip(rig.names, rig.joints):
-            b = np.array(got["heads"][str(f)][name])  # Blender: Z up; ours: Y up -> (x, -z, y)
-            o = ours[f - first, j]
-            assert np.linalg.norm(b - np.array([o[0], -o[2], o[1]])) < 0.01, (f, name)
+        heads = np.array([got["heads"][str(f)][name] for name in rig.names])
+        mine = ours[f - first, list(rig.joints)]
+        assert np.linalg.norm(heads - mine, axis=1).max() < 0.01, f
+        for b, p in enumerate(rig.parents):  # every limb (parent -> child) points where ours does: within 3 deg
+            theirs, limb = heads[b] - heads[p], mine[b] - mine[p]
+            if p >= 0 and np.linalg.norm(limb) > 0.01:
+                cos = theirs @ limb / np.linalg.norm(theirs) / np.linalg.norm(limb)
+                assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 3.0, (f, rig.names[b])
     return got
 
 
