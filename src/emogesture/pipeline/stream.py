@@ -1,0 +1,179 @@
+"""Streaming: speech pushed in pieces of any size, motion frames out as soon as they are decided.
+
+The offline pipeline draws each 10-s window once with the whole recording known. A stream cannot wait, so
+:class:`GestureStream` draws a window at every ``hop_seconds`` of audio received (an *update*): the window
+ending at the newest sample (the first 10 s padded with silence in front), ``candidates`` draws of it, and
+emits the frames of the newest hop from its end. Each update over sound draws new noise, so the frames of
+successive updates come from different draws; over silence the same noise is drawn again, and the motion
+settles.
+Each update joins its frames to the last frame already sent: of the candidates, the one whose frame at that
+instant lies nearest (the smallest largest joint jump, as the offline seam chooser measures), its offset from
+the sent frame fading out over ``blend_seconds`` (a raised cosine in the feature domain). The emotion can be
+changed at any time and is read at the next update.
+
+Latency budget: a sample waits for the update that covers it (up to one hop, half a hop on average), then for
+that update's work (the speech encoders on one 10-s window, ``candidates`` diffusion draws and their decoding:
+about 0.05 s on two CPU cores with the bundled model), then its frame is sent.
+
+Frame ``i`` stands for the instant ``i / 30`` s from the stream's start; a stream of ``s`` seconds gives
+``round(s × 30)`` frames, the last ones when :meth:`GestureStream.end` flushes it.
+
+Example (the bundled model; 100-ms pieces of a recording, the emotion changed half-way)::
+
+    stream = GestureStream(GesturePipeline.from_run(), emotion="anger")
+    for i, piece in enumerate(np.array_split(wave, len(wave) // 1600)):
+        if i == 100:
+            stream.set_emotion("sadness")
+        for frames in stream.push(piece):
+            send(frames.start, frames.sequence.poses, frames.sequence.trans)
+    for frames in stream.end():
+        send(frames.start, frames.sequence.poses, frames.sequence.trans)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from emogesture.audio import TARGET_SAMPLE_RATE, resample, window_activity
+from emogesture.errors import EmogestureError
+from emogesture.pipeline.animate import emotion_request
+from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline
+from emogesture.pipeline.postprocess import residual_weights, settle_quiet_windows
+from emogesture.types import SMPLXSequence
+
+__all__ = ["GestureStream", "StreamFrames", "StreamSettings"]
+
+
+@dataclass(frozen=True)
+class StreamSettings:
+    """``hop_seconds``: audio between updates; ``candidates``: draws per update, the nearest one kept;
+    ``blend_seconds``: how long a join's offset takes to fade."""
+
+    hop_seconds: float = 0.25
+    candidates: int = 2
+    blend_seconds: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0.05 <= self.hop_seconds <= 5.0:
+            raise EmogestureError(f"stream hop {self.hop_seconds} s: between 0.05 and 5 s")
+        if self.candidates < 1 or self.blend_seconds < 0:
+            raise EmogestureError("stream candidates must be at least 1 and blend_seconds at least 0")
+
+
+@dataclass
+class StreamFrames:
+    """Frames decided by one update: the first frame's index ``start`` and the SMPL-X poses of the frames
+    ``start, start + 1, ...`` (``sequence.poses [n, 55, 3]``, ``sequence.trans [n, 3]``)."""
+
+    start: int
+    sequence: SMPLXSequence
+
+    def __len__(self) -> int:
+        return self.sequence.num_frames
+
+
+class GestureStream:
+    """One stream of speech into frames (module docstring). ``emotion``: ``auto``, ``own`` or a label, with
+    ``emotion_weight`` for a label (None = 1); ``seed``: every draw of the stream derives from it."""
+
+    def __init__(self, pipe: GesturePipeline, *, emotion: str = "auto", emotion_weight: float | None = None,
+                 seed: int = 0, settings: StreamSettings | None = None) -> None:
+        self.pipe, self.seed = pipe, int(seed)
+        self.settings = settings or StreamSettings()
+        self.fps = pipe.fps
+        self.window = int(round(WINDOW_SECONDS * TARGET_SAMPLE_RATE))
+        self.frames_per_window = pipe.loaded.config.vae.frames
+        self.audio = np.zeros(self.window, np.float32)  # the newest 10 s (silence before the stream)
+        self.received = 0  # samples received (at 16 kHz)
+        self.sent = 0  # frames sent
+        self.updates = 0
+        self.draws = 0  # noise draws so far (a new one at each update over sound)
+        self.last: np.ndarray | None = None  # the last sent frame's features [D]
+        self.set_emotion(emotion, emotion_weight)
+
+    @property
+    def seconds(self) -> float:
+        return self.received / TARGET_SAMPLE_RATE
+
+    def set_emotion(self, emotion: str = "auto", weight: float | None = None) -> None:
+        """Change the emotion from the next update on (a one-line error for an unknown one)."""
+        mode, label = emotion_request(emotion)
+        if weight is not None and not 0.0 <= float(weight) <= 1.0:
+            raise EmogestureError(f"emotion_weight {weight}: must be between 0 and 1")
+        if weight is not None and label is None:
+            raise EmogestureError("emotion_weight needs an emotion label to blend toward")
+        self.mode = mode
+        self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight)) \
+            if label is not None else None
+
+    def push(self, samples: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE) -> list[StreamFrames]:
+        """Mono samples ``[N]`` (float in [-1, 1]) at ``sample_rate`` -> the frames decided by the updates
+        they complete (possibly none)."""
+        x = np.asarray(samples, np.float32).reshape(-1)
+        if sample_rate != TARGET_SAMPLE_RATE:
+            x = resample(x, sample_rate, TARGET_SAMPLE_RATE)
+        out = []
+        hop = int(round(self.settings.hop_seconds * TARGET_SAMPLE_RATE))
+        while len(x):
+            room = hop * (self.updates + 1) - self.received  # samples until the next update
+            piece, x = x[:room], x[room:]
+            self._append(piece)
+            if self.received == hop * (self.updates + 1):
+                out.append(self._update())
+        return [f for f in out if len(f)]
+
+    def end(self) -> list[StreamFrames]:
+        """The frames left: those of the audio since the last update."""
+        if int(round(self.seconds * self.fps)) <= self.sent:
+            return []
+        frames = self._update()
+        return [frames] if len(frames) else []
+
+    def _append(self, piece: np.ndarray) -> None:
+        n = len(piece)
+        if n >= self.window:
+            self.audio[:] = piece[-self.window:]
+        elif n:
+            self.audio[:-n] = self.audio[n:]
+            self.audio[-n:] = piece
+        self.received += n
+
+    def _update(self) -> StreamFrames:
+        """Draw the window ending now and send the frames up to now, joined to the last frame sent."""
+        self.updates += 1
+        target = int(round(self.seconds * self.fps))
+        new = target - self.sent
+        if new <= 0:
+            return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
+        enc, _ = self.pipe.encode(self.audio)
+        conds = self.pipe.conditions(enc, self.edit, self.mode)
+        k = self.settings.candidates
+        hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
+        if window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop], window_seconds=hop)[0] > 0.1:
+            self.draws += 1  # new noise where the newest audio has sound; over silence the same draw goes on
+        seeds = [int(np.random.SeedSequence([self.seed, self.draws, c]).generate_state(1)[0]) for c in range(k)]
+        weight = residual_weights(window_activity(self.audio, TARGET_SAMPLE_RATE, [0.0]))
+        drawn = self.pipe.generate_windows([np.repeat(c[:1], k, 0) for c in conds], seeds,
+                                           residual_weights=np.repeat(weight, k))
+        drawn = settle_quiet_windows(drawn, np.repeat(weight, k), self.fps)  # [K, T, D]
+        end = self.frames_per_window  # window frame `end` is the instant of frame `target`
+        chosen = drawn[:, end - new:end]
+        if self.last is None:
+            frames = chosen[0]
+        else:
+            before = drawn[:, end - new - 1]  # each candidate at the instant of the last frame sent
+            jumps = self.pipe.joint_jumps(np.stack([np.broadcast_to(self.last, before.shape), before], 1))[:, 0]
+            best = int(np.argmin(jumps))
+            fade = self._fade(new)
+            frames = chosen[best] + fade[:, None] * (self.last - before[best])[None]
+        self.last = frames[-1].copy()
+        start, self.sent = self.sent, target
+        return StreamFrames(start, self.pipe.to_sequence(frames))
+
+    def _fade(self, count: int) -> np.ndarray:
+        """The share ``[count]`` of a join's offset left at each of the next frames: 1 -> 0 over the blend."""
+        span = max(self.settings.blend_seconds * self.fps, 1e-6)
+        done = np.arange(1, count + 1) / span  # frames after the join
+        return np.where(done < 1.0, 0.5 * (1 + np.cos(np.pi * np.clip(done, 0, 1))), 0.0)

@@ -1,0 +1,96 @@
+"""Streaming with the bundled model: one frame per 1/30 s of audio whatever the chunks, joins no rougher than
+offline generation, an emotion changed mid-stream that shows in the motion, calm motion from silence."""
+
+import numpy as np
+import pytest
+import soundfile as sf
+import torch
+
+from emogesture.assets import DEMO_CLIPS
+from emogesture.errors import EmogestureError
+from emogesture.motion import SkeletonBody
+from emogesture.pipeline.generate import GesturePipeline
+from emogesture.pipeline.stream import GestureStream
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def pipe():
+    return GesturePipeline.from_run()
+
+
+@pytest.fixture(scope="module")
+def talk():
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    assert sr == 16000
+    return wave
+
+
+def stream(pipe, wave, chunks, sample_rate=16000, **options):
+    s = GestureStream(pipe, **options)
+    out, i = [], 0
+    for n in chunks:
+        out += s.push(wave[i:i + n], sample_rate)
+        i += n
+    out += s.push(wave[i:], sample_rate) + s.end()
+    assert all(a.start + len(a) == b.start for a, b in zip(out, out[1:])) and out[0].start == 0
+    return np.concatenate([f.sequence.poses for f in out]), np.concatenate([f.sequence.trans for f in out])
+
+
+def joints(poses, trans):
+    with torch.no_grad():
+        return SkeletonBody()(torch.from_numpy(poses), torch.from_numpy(trans)).numpy()
+
+
+def largest_jump(poses, trans):
+    return np.linalg.norm(np.diff(joints(poses, trans), axis=0), axis=-1).max()
+
+
+def test_one_frame_per_thirtieth_of_a_second_whatever_the_chunks(pipe, talk):
+    wave = talk[: int(7.37 * 16000)]
+    rng = np.random.default_rng(0)
+    poses, _ = stream(pipe, wave, rng.integers(1, 9000, 40))
+    assert len(poses) == round(7.37 * 30)
+    at_44k = np.interp(np.arange(int(len(wave) * 44100 / 16000)) * 16000 / 44100, np.arange(len(wave)), wave)
+    poses, _ = stream(pipe, at_44k.astype(np.float32), [4410] * 10, sample_rate=44100)
+    assert abs(len(poses) - round(7.37 * 30)) <= 1
+
+
+def test_joins_are_no_rougher_than_offline_generation(pipe, talk):
+    poses, trans = stream(pipe, talk, [1600] * (len(talk) // 1600))  # 100-ms chunks
+    offline = pipe.generate(talk)[0]
+    assert len(poses) == offline.num_frames
+    assert largest_jump(poses, trans) <= 1.5 * largest_jump(offline.poses, offline.trans)
+
+
+def test_an_emotion_changed_mid_stream_shows_in_the_motion(pipe, talk):
+    wave = np.concatenate([talk, talk[: 10 * 16000]])  # 30 s
+    s = GestureStream(pipe, emotion="anger")
+    out = []
+    for i in range(0, len(wave), 1600):
+        if i == 15 * 16000:
+            s.set_emotion("sadness")
+        out += s.push(wave[i:i + 1600])
+    out += s.end()
+    j = joints(np.concatenate([f.sequence.poses for f in out]), np.concatenate([f.sequence.trans for f in out]))
+    wrists = j[:, [20, 21]]
+    speed = np.linalg.norm(np.diff(wrists, axis=0), axis=-1).mean(1) * 30
+    height = (wrists[:, :, 1] - j[:, None, 0, 1]).mean(1)
+    angry, sad = slice(60, 15 * 30), slice(15 * 30 + 45, None)  # 1.5 s for the change to take effect
+    assert speed[angry].mean() > 1.3 * speed[sad].mean() and height[angry].mean() > height[sad].mean() + 0.05
+
+
+def wrist_speed(poses, trans):
+    return (np.linalg.norm(np.diff(joints(poses, trans)[:, [20, 21]], axis=0), axis=-1).mean(1) * 30).mean()
+
+
+def test_silence_is_calm_and_bad_emotions_are_one_line_errors(pipe, talk):
+    silence = stream(pipe, np.zeros(12 * 16000, np.float32), [1600] * 120)
+    speech = stream(pipe, talk[: 12 * 16000], [1600] * 120)
+    assert len(silence[0]) == 360 and wrist_speed(*silence) < 0.3 * wrist_speed(*speech)
+    s = GestureStream(pipe)
+    with pytest.raises(EmogestureError, match="unknown"):
+        s.set_emotion("rage")
+    with pytest.raises(EmogestureError, match="needs an emotion label"):
+        s.set_emotion("auto", 0.5)
