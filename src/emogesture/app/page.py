@@ -12,6 +12,7 @@ from pathlib import Path
 
 import soundfile as sf
 
+from emogesture.assets import ASSETS
 from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
@@ -19,7 +20,7 @@ from emogesture.export.fbx import blender_binary
 from emogesture.pipeline.animate import AnimationRequest, animate
 from emogesture.pipeline.generate import GesturePipeline
 
-VIEWER_JS = (Path(__file__).with_name("viewer.js")).read_text()
+VIEWER_JS = (ASSETS / "web" / "mannequin.js").read_text() + "\n" + Path(__file__).with_name("viewer.js").read_text()
 VIEWER_HTML = """<div class="emogesture-viewer">
 <canvas style="width:100%;height:420px;display:block;border-radius:8px;cursor:grab"></canvas>
 <audio controls preload="auto" style="width:100%;margin-top:6px"></audio>

@@ -6,7 +6,8 @@ import argparse
 import sys
 
 from emogesture import __version__
-from emogesture.cli import app_commands, data_commands, eval_commands, generate_commands, train_commands
+from emogesture.cli import (app_commands, data_commands, eval_commands, generate_commands, live_commands,
+                            train_commands)
 from emogesture.errors import EmogestureError
 
 
@@ -22,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
     eval_commands.register(sub)
     generate_commands.register(sub)
     app_commands.register(sub)
+    live_commands.register(sub)
     return parser
 
 

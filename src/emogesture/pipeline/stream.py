@@ -108,19 +108,23 @@ class GestureStream:
         self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight)) \
             if label is not None else None
 
-    def push(self, samples: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE) -> list[StreamFrames]:
+    def push(self, samples: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE,
+             catch_up: bool = False) -> list[StreamFrames]:
         """Mono samples ``[N]`` (float in [-1, 1]) at ``sample_rate`` -> the frames decided by the updates
-        they complete (possibly none)."""
+        they complete (possibly none). ``catch_up``: where the samples complete several hops, update once, at
+        the last (a server that fell behind spends one window on all the audio that waited)."""
         x = np.asarray(samples, np.float32).reshape(-1)
         if sample_rate != TARGET_SAMPLE_RATE:
             x = resample(x, sample_rate, TARGET_SAMPLE_RATE)
         out = []
         hop = int(round(self.settings.hop_seconds * TARGET_SAMPLE_RATE))
         while len(x):
-            room = hop * (self.updates + 1) - self.received  # samples until the next update
+            hops = 1 + (max(0, (self.received + len(x)) // hop - self.updates - 1) if catch_up else 0)
+            room = hop * (self.updates + hops) - self.received  # samples until the update
             piece, x = x[:room], x[room:]
             self._append(piece)
-            if self.received == hop * (self.updates + 1):
+            if self.received == hop * (self.updates + hops):
+                self.updates += hops - 1
                 out.append(self._update())
         return [f for f in out if len(f)]
 

@@ -1,0 +1,82 @@
+"""Latency of `emogesture live` with the bundled model: a 60-s real recording (Debian's pocketsphinx-testdata,
+joined) streamed at the pace of speech in 100-ms chunks by 1 and by 4 clients at once; per client, the seconds
+from sending the audio of an instant to receiving its frame (median, 95th percentile), and the frames' count.
+
+Usage: python bench/live.py [--streams 1 4] [--out bench/results/live.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import soundfile as sf
+
+from emogesture.checkpoints import write_text_atomic
+from emogesture.data.real_speech import RECORDINGS, load_real_recording
+from emogesture.live.client import stream_file
+
+
+def minute_of_real_speech(folder: Path) -> Path:
+    wave = np.concatenate([load_real_recording(r) for r in (*RECORDINGS, RECORDINGS[0])])[: 60 * 16000]
+    path = folder / "minute.wav"
+    sf.write(path, wave, 16000)
+    return path
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--streams", type=int, nargs="+", default=[1, 4])
+    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
+    args = ap.parse_args()
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = subprocess.Popen([sys.executable, "-m", "emogesture.cli.main", "live", "--port", str(port)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        for _ in range(120):
+            try:
+                urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2)
+                break
+            except OSError as e:
+                if getattr(e, "code", None):
+                    break
+                time.sleep(1)
+        with tempfile.TemporaryDirectory() as work:
+            clip = minute_of_real_speech(Path(work))
+            rows = []
+            for n in args.streams:
+                async def run_all():
+                    return await asyncio.gather(*(stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k)
+                                                  for k in range(n)))
+                results = asyncio.run(run_all())
+                lat = np.concatenate([r.latency for r in results])
+                frames = sorted({len(r.poses) for r in results})
+                rows.append(f"| {n} | {np.median(lat):.3f} | {np.quantile(lat, 0.95):.3f} | {lat.max():.3f} | "
+                            f"{', '.join(map(str, frames))} |")
+                print(rows[-1], flush=True)
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+    text = ("# emogesture live: latency on this machine\n\n"
+            f"`python bench/live.py` ({os.cpu_count()} CPU cores; the bundled model; a 60-s real recording streamed "
+            "at the pace of speech in 100-ms chunks per client). Latency: from the client sending the audio of an "
+            "instant to it receiving the frame of that instant.\n\n"
+            "| streams at once | median (s) | 95th percentile (s) | largest (s) | frames per stream |\n"
+            "|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+    write_text_atomic(args.out, text)
+    print(args.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,80 @@
+"""``emogesture live`` (the streaming server) and ``emogesture live-client`` (stream a file to it)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("live", help="stream speech in, gestures out, over a WebSocket (on 127.0.0.1 unless --host)",
+                       description="Serve ws://HOST:PORT/live: 16-bit PCM in, SMPL-X frames out as soon as each is "
+                       "decided, the emotion changeable while streaming (protocol: emogesture.live.server).")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765)")
+    p.add_argument("--model", type=Path, help="run folder of `emogesture train gesture` (default: the bundled model)")
+    p.add_argument("--speech-model", type=Path, help="speech model run (default: the one the model names)")
+    p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
+    p.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"], help="as for generate")
+    p.set_defaults(func=run_live)
+
+    p = sub.add_parser("live-client", help="stream a recording to `emogesture live` and report the latency",
+                       description="Send SPEECH to a live server in chunks at the pace of speech; print how many "
+                       "frames came back and how late; optionally save them as a BEAT2 npz.")
+    p.add_argument("speech", type=Path, help="speech audio (any format generate reads)")
+    p.add_argument("--url", default="ws://127.0.0.1:8765/live", help="the server (default ws://127.0.0.1:8765/live)")
+    p.add_argument("--emotion", default="auto", help="auto, own or an emotion label")
+    p.add_argument("--chunk", type=float, default=0.1, help="seconds of audio per message (default 0.1)")
+    p.add_argument("--fast", action="store_true", help="send as fast as possible instead of at the pace of speech")
+    p.add_argument("-o", "--out", type=Path, help="write the frames received as this .npz")
+    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    p.set_defaults(func=run_live_client)
+
+
+def run_live(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from emogesture.live.server import serve_live
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.runtime import resolve_device
+
+    pipe = GesturePipeline.from_run(args.model, args.speech_model, device=resolve_device(args.device),
+                                    precision=args.precision)
+    print(f"emogesture live: ws://{args.host}:{args.port}/live (the page: http://{args.host}:{args.port}/)", flush=True)
+    try:
+        asyncio.run(serve_live(pipe, args.host, args.port))
+    except OSError as e:
+        from emogesture.errors import EmogestureError
+
+        raise EmogestureError(f"cannot listen on {args.host}:{args.port} ({e.strerror or e})") from None
+    return 0
+
+
+def run_live_client(args: argparse.Namespace) -> int:
+    import asyncio
+
+    import numpy as np
+
+    from emogesture.fileio import check_output
+    from emogesture.live.client import stream_file
+    from emogesture.motion import save_smplx_npz
+    from emogesture.types import SMPLXSequence
+
+    if args.out is not None:
+        check_output(args.out, args.overwrite)
+    try:
+        result = asyncio.run(stream_file(args.url, args.speech, emotion=args.emotion, chunk_seconds=args.chunk,
+                                         realtime=not args.fast))
+    except OSError as e:
+        from emogesture.errors import EmogestureError
+
+        raise EmogestureError(f"{args.url}: cannot connect ({e.strerror or e})") from None
+    for error in result.errors:
+        print(f"server: {error}")
+    lat = result.latency
+    print(f"{len(result.poses)} frames; latency from audio sent to frame received: median {np.median(lat):.3f} s, "
+          f"95th percentile {np.quantile(lat, 0.95):.3f} s, largest {lat.max():.3f} s")
+    if args.out is not None:
+        save_smplx_npz(SMPLXSequence(poses=result.poses, trans=result.trans), args.out, overwrite=args.overwrite)
+        print(args.out)
+    return 0

@@ -1,0 +1,1 @@
+"""Live animation: speech streamed over a WebSocket, gestures streamed back (``emogesture live``)."""

@@ -1,0 +1,189 @@
+"""`emogesture live` with the bundled model: a file streamed over the WebSocket gives the frames the library's
+stream gives, one per 1/30 s; the Mixamo skeleton as quaternions; bad clients get a one-line error and the
+server and the other streams carry on. The server binds to 127.0.0.1, stops by itself after ten minutes,
+and is ended by its process id."""
+
+import asyncio
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from emogesture.assets import DEMO_CLIPS
+
+pytestmark = pytest.mark.slow
+websockets = pytest.importorskip("websockets")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    work = tmp_path_factory.mktemp("live")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    proc = subprocess.Popen(["timeout", "600", sys.executable, "-m", "emogesture.cli.main", "live", "--port",
+                             str(port)], stdout=open(work / "server.log", "w"), stderr=subprocess.STDOUT, start_new_session=True)
+    deadline = time.time() + 120
+    while True:
+        try:
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/nothing", timeout=2)
+        except urllib.error.HTTPError:
+            break  # it answers
+        except OSError:
+            if proc.poll() is not None or time.time() > deadline:
+                os.killpg(proc.pid, signal.SIGTERM)
+                pytest.fail(f"the live server did not start: {(work / 'server.log').read_text()[-2000:]}")
+            time.sleep(0.5)
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    clip = work / "clip.wav"
+    sf.write(clip, wave[: int(7.3 * sr)], sr)
+    yield f"ws://127.0.0.1:{port}/live", clip, proc
+    os.killpg(proc.pid, signal.SIGTERM)
+    proc.wait(timeout=30)
+
+
+def test_a_file_streams_to_one_frame_per_thirtieth_of_a_second_with_smooth_joins(server):
+    from emogesture.live.client import stream_file
+    from emogesture.motion import SkeletonBody
+    from emogesture.pipeline.generate import GesturePipeline
+    import torch
+
+    url, clip, proc = server
+    result = asyncio.run(stream_file(url, clip, emotion="anger", realtime=False, chunk_seconds=0.07))
+    assert result.errors == [] and len(result.poses) == round(7.3 * 30)
+    with torch.no_grad():
+        joints = SkeletonBody()(torch.from_numpy(result.poses), torch.from_numpy(result.trans)).numpy()
+    offline = GesturePipeline.from_run().generate(sf.read(clip, dtype="float32")[0], edit=None)[0]
+    with torch.no_grad():
+        reference = SkeletonBody()(torch.from_numpy(offline.poses), torch.from_numpy(offline.trans)).numpy()
+    jump = lambda j: np.linalg.norm(np.diff(j, axis=0), axis=-1).max()  # noqa: E731
+    assert jump(joints) <= 1.5 * jump(reference)  # sent as fast as possible: the server catches up in big updates
+    assert proc.poll() is None
+
+
+def test_the_mixamo_skeleton_comes_as_quaternions(server):
+    from websockets.sync.client import connect
+
+    url, clip, _ = server
+    pcm = (sf.read(clip, dtype="float32")[0][:16000] * 32767).astype("<i2").tobytes()
+    with connect(url) as ws:
+        ws.send(json.dumps({"sample_rate": 16000, "skeleton": "mixamo"}))
+        hello = json.loads(ws.recv())
+        assert hello["ready"] and len(hello["bones"]) == 52 and hello["bones"][0] == "mixamorig:Hips"
+        ws.send(pcm)
+        ws.send(json.dumps({"end": True}))
+        frames = []
+        while True:
+            reply = json.loads(ws.recv())
+            frames += reply.get("frames", [])
+            if reply.get("done"):
+                break
+    assert [f["frame"] for f in frames] == list(range(30)) and reply["total_frames"] == 30
+    q = np.array([f["rotations"] for f in frames])
+    assert q.shape == (30, 52, 4) and np.allclose(np.linalg.norm(q, axis=-1), 1, atol=1e-3)
+
+
+def test_bad_clients_get_one_line_errors_and_the_server_carries_on(server):
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+
+    url, clip, proc = server
+    for first, needle in (({"sample_rate": 3}, "sample_rate 3"), ("hello", "not JSON"),
+                          ({"sample_rate": 16000, "colour": "red"}, "unknown key"),
+                          ({"sample_rate": 16000, "emotion": "rage"}, "unknown")):
+        with connect(url) as ws:
+            ws.send(first if isinstance(first, str) else json.dumps(first))
+            reply = json.loads(ws.recv())
+            assert needle in reply["error"] and "\n" not in reply["error"]
+            with pytest.raises(ConnectionClosed):
+                ws.recv()
+    pcm = (sf.read(clip, dtype="float32")[0] * 32767).astype("<i2").tobytes()
+    with connect(url) as ws:  # a client that drops mid-stream
+        ws.send(json.dumps({"sample_rate": 16000}))
+        ws.recv()
+        ws.send(pcm[:32000])
+    with connect(url) as ws:  # text where audio is expected, a bad emotion change, an odd byte count
+        ws.send(json.dumps({"sample_rate": 16000}))
+        ws.recv()
+        errors = []
+        ws.send("not json")
+        ws.send(json.dumps({"emotion": "rage"}))
+        ws.send(pcm[:16001])
+        ws.send(pcm[16001:32000])
+        ws.send(json.dumps({"emotion": "sadness", "emotion_weight": 0.5}))
+        ws.send(json.dumps({"end": True}))
+        frames = 0
+        while True:
+            reply = json.loads(ws.recv())
+            errors += [reply["error"]] if "error" in reply else []
+            frames += len(reply.get("frames", []))
+            if reply.get("done"):
+                break
+    assert len(errors) == 2 and "not JSON" in errors[0] and "unknown" in errors[1] and frames == 30
+    assert proc.poll() is None
+
+
+def test_the_page_streams_a_fake_microphone_and_the_mannequin_moves(server, tmp_path):
+    """Headless chromium with a fake microphone fed from a WAV file opens the page, streams, and the
+    mannequin's canvas changes while frames arrive; the measured latency is on the page."""
+    import base64
+    import io
+    from pathlib import Path
+
+    from PIL import Image
+
+    chromium, driver_path = "/usr/bin/chromium", "/usr/bin/chromedriver"
+    if not (Path(chromium).exists() and Path(driver_path).exists()):
+        if os.environ.get("CI"):
+            pytest.fail("chromium and chromium-driver are missing (make test installs them)")
+        pytest.skip("chromium and chromium-driver are missing (make test installs them)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    url, clip, proc = server
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    microphone = tmp_path / "microphone.wav"
+    sf.write(microphone, wave, sr, subtype="PCM_16")
+    options = Options()
+    options.binary_location = chromium
+    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1100,1000",
+                 "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                 "--autoplay-policy=no-user-gesture-required", "--use-fake-ui-for-media-stream",
+                 "--use-fake-device-for-media-stream", f"--use-file-for-fake-audio-capture={microphone}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+
+    def canvas():
+        data = driver.execute_script("return document.getElementById('view').toDataURL('image/png');")
+        return np.asarray(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"), np.int16)
+
+    try:
+        driver.get(url.replace("ws://", "http://").removesuffix("/live") + "/")
+        WebDriverWait(driver, 60).until(lambda d: d.execute_script("return window.emogestureLive !== undefined"))
+        driver.find_element("id", "emotion-anger").click()
+        driver.find_element("id", "mic").click()
+        WebDriverWait(driver, 60).until(lambda d: d.execute_script("return window.emogestureLive.frames") > 30)
+        first = canvas()
+        time.sleep(1.5)
+        second = canvas()
+        frames = driver.execute_script("return window.emogestureLive.frames")
+        assert frames > 60 and np.abs(second - first).sum(-1).max() > 30  # frames arrive, the mannequin moves
+        drawn = (np.abs(second - second[2, 2]).sum(-1) > 30).mean()
+        assert 0.01 < drawn < 0.6
+        latency = float(driver.find_element("id", "latency").text)
+        assert 0.0 < latency < 5.0
+        driver.save_screenshot(str(tmp_path / "live.png"))
+    finally:
+        driver.quit()
+    assert proc.poll() is None
