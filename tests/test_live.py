@@ -187,3 +187,18 @@ def test_the_page_streams_a_fake_microphone_and_the_mannequin_moves(server, tmp_
     finally:
         driver.quit()
     assert proc.poll() is None
+
+
+def test_streams_at_once_each_get_their_own_frames(server):
+    from emogesture.live.client import stream_file
+
+    url, clip, proc = server
+
+    async def both():
+        return await asyncio.gather(stream_file(url, clip, emotion="anger", realtime=False, seed=1),
+                                    stream_file(url, clip, emotion="sadness", realtime=False, seed=2))
+
+    anger, sadness = asyncio.run(both())
+    assert len(anger.poses) == len(sadness.poses) == round(7.3 * 30) and not anger.errors + sadness.errors
+    assert np.abs(anger.poses - sadness.poses).mean() > 0.01  # each stream its own emotion and seed
+    assert proc.poll() is None

@@ -16,6 +16,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speech-model", type=Path, help="speech model run (default: the one the model names)")
     p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"], help="as for generate")
+    p.add_argument("--workers", type=int, default=None,
+                   help="threads drawing the streams' updates (default: one per CPU core, at most 4)")
     p.set_defaults(func=run_live)
 
     p = sub.add_parser("live-client", help="stream a recording to `emogesture live` and report the latency",
@@ -34,18 +36,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_live(args: argparse.Namespace) -> int:
     import asyncio
 
+    from emogesture.errors import EmogestureError
     from emogesture.live.server import serve_live
     from emogesture.pipeline.generate import GesturePipeline
     from emogesture.runtime import resolve_device
+
+    if args.workers is not None and args.workers < 1:
+        raise EmogestureError(f"--workers {args.workers}: at least 1")
 
     pipe = GesturePipeline.from_run(args.model, args.speech_model, device=resolve_device(args.device),
                                     precision=args.precision)
     print(f"emogesture live: ws://{args.host}:{args.port}/live (the page: http://{args.host}:{args.port}/)", flush=True)
     try:
-        asyncio.run(serve_live(pipe, args.host, args.port))
+        asyncio.run(serve_live(pipe, args.host, args.port, workers=args.workers))
     except OSError as e:
-        from emogesture.errors import EmogestureError
-
         raise EmogestureError(f"cannot listen on {args.host}:{args.port} ({e.strerror or e})") from None
     return 0
 

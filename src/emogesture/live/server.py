@@ -17,8 +17,8 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
    expected, a wrong sample rate) gets ``{"error": "one line"}``; a bad first message also closes the
    connection (code 1008). Other streams never notice.
 
-Streams share one pipeline; their updates run one at a time on a worker thread, while each connection's
-messages are read as they arrive. A stream whose audio waited while the worker was busy is updated once for
+Streams share one pipeline; their updates run on a few worker threads (one per core, at most four; one
+stream's updates one after another), while each connection's messages are read as they arrive. A stream whose audio waited while the worker was busy is updated once for
 all of it (its frames then come in a larger batch), so a loaded server falls behind by a bounded amount
 instead of without end.
 """
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 from http import HTTPStatus
@@ -89,11 +90,13 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
 
 
 class LiveServer:
-    """The server's state: one pipeline, one worker thread for every stream's updates."""
+    """The server's state: one pipeline, ``workers`` threads running the streams' updates (one stream's
+    updates always one after another; the model's weights are held, never swapped, so updates of different
+    streams may run at once)."""
 
-    def __init__(self, pipe: GesturePipeline) -> None:
+    def __init__(self, pipe: GesturePipeline, workers: int = 1) -> None:
         self.pipe = pipe
-        self.worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="emogesture-live")
+        self.worker = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="emogesture-live")
         self.streams = 0
 
     async def handle(self, connection) -> None:
@@ -184,12 +187,18 @@ class LiveServer:
         raise EmogestureError(f"unknown message {sorted(message)}; send emotion, emotion_weight or end")
 
 
+def default_workers() -> int:
+    """Update threads: one per CPU core, at most four."""
+    return max(1, min(4, os.cpu_count() or 1))
+
+
 async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int = 8765,
-                     ready: asyncio.Future | None = None) -> None:
-    """Serve ``/live`` (and the page at ``/``) on ``host:port`` until cancelled."""
+                     ready: asyncio.Future | None = None, workers: int | None = None) -> None:
+    """Serve ``/live`` (and the page at ``/``) on ``host:port`` until cancelled, with ``workers`` update
+    threads (None: :func:`default_workers`)."""
     from websockets.asyncio.server import serve
 
-    server = LiveServer(pipe)
+    server = LiveServer(pipe, workers or default_workers())
     rest = SMPLXSequence(poses=np.zeros((1, 55, 3), np.float32), trans=np.zeros((1, 3), np.float32))
     files = {  # path -> (content type, body): the page, its mannequin code and the mannequin at rest
         "/": ("text/html; charset=utf-8", PAGE.read_bytes()),
