@@ -35,7 +35,8 @@ def stream(pipe, wave, chunks, sample_rate=16000, **options):
         i += n
     out += s.push(wave[i:], sample_rate) + s.end()
     assert all(a.start + len(a) == b.start for a, b in zip(out, out[1:])) and out[0].start == 0
-    return np.concatenate([f.sequence.poses for f in out]), np.concatenate([f.sequence.trans for f in out])
+    return (np.concatenate([f.sequence.poses for f in out]), np.concatenate([f.sequence.trans for f in out]),
+            [f.start for f in out])  # where each update's frames begin: the joins
 
 
 def joints(poses, trans):
@@ -50,18 +51,21 @@ def largest_jump(poses, trans):
 def test_one_frame_per_thirtieth_of_a_second_whatever_the_chunks(pipe, talk):
     wave = talk[: int(7.37 * 16000)]
     rng = np.random.default_rng(0)
-    poses, _ = stream(pipe, wave, rng.integers(1, 9000, 40))
+    poses, _, _ = stream(pipe, wave, rng.integers(1, 9000, 40))
     assert len(poses) == round(7.37 * 30)
     at_44k = np.interp(np.arange(int(len(wave) * 44100 / 16000)) * 16000 / 44100, np.arange(len(wave)), wave)
-    poses, _ = stream(pipe, at_44k.astype(np.float32), [4410] * 10, sample_rate=44100)
+    poses, _, _ = stream(pipe, at_44k.astype(np.float32), [4410] * 10, sample_rate=44100)
     assert abs(len(poses) - round(7.37 * 30)) <= 1
 
 
 def test_joins_are_no_rougher_than_offline_generation(pipe, talk):
-    poses, trans = stream(pipe, talk, [1600] * (len(talk) // 1600))  # 100-ms chunks
+    poses, trans, starts = stream(pipe, talk, [1600] * (len(talk) // 1600))  # 100-ms chunks
     offline = pipe.generate(talk)[0]
     assert len(poses) == offline.num_frames
     assert largest_jump(poses, trans) <= 1.5 * largest_jump(offline.poses, offline.trans)
+    steps = np.linalg.norm(np.diff(joints(poses, trans), axis=0), axis=-1).max(-1)  # [T - 1]: frame t -> t + 1
+    at_joins = steps[[start - 1 for start in starts[1:]]]
+    assert len(at_joins) > 50 and at_joins.max() <= np.quantile(steps, 0.99)  # no join above the motion's p99
 
 
 def test_an_emotion_changed_mid_stream_shows_in_the_motion(pipe, talk):
@@ -86,8 +90,8 @@ def wrist_speed(poses, trans):
 
 
 def test_silence_is_calm_and_bad_emotions_are_one_line_errors(pipe, talk):
-    silence = stream(pipe, np.zeros(12 * 16000, np.float32), [1600] * 120)
-    speech = stream(pipe, talk[: 12 * 16000], [1600] * 120)
+    silence = stream(pipe, np.zeros(12 * 16000, np.float32), [1600] * 120)[:2]
+    speech = stream(pipe, talk[: 12 * 16000], [1600] * 120)[:2]
     assert len(silence[0]) == 360 and wrist_speed(*silence) < 0.3 * wrist_speed(*speech)
     s = GestureStream(pipe)
     with pytest.raises(EmogestureError, match="unknown"):
