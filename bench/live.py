@@ -2,7 +2,11 @@
 joined) streamed at the pace of speech in 100-ms chunks by 1 and by 4 clients at once; per client, the seconds
 from sending the audio of an instant to receiving its frame (median, 95th percentile), and the frames' count.
 
-Usage: python bench/live.py [--streams 1 4] [--out bench/results/live.md]
+Also (``--long MINUTES``, default 10): one stream of that many minutes of the recording repeated, fed to the
+library's stream as fast as it goes: the frames against round(seconds x 30), and the process's resident memory
+after each minute (no growth expected: the stream keeps a fixed 10-s buffer and no frames).
+
+Usage: python bench/live.py [--streams 1 4] [--long 10] [--out bench/results/live.md]
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ def minute_of_real_speech(folder: Path) -> Path:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--streams", type=int, nargs="+", default=[1, 4])
+    ap.add_argument("--long", type=float, default=10.0, help="minutes of the long stream (0: none)")
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
     args = ap.parse_args()
     with socket.socket() as s:
@@ -74,8 +79,40 @@ def main() -> None:
             "instant to it receiving the frame of that instant.\n\n"
             "| streams at once | median (s) | 95th percentile (s) | largest (s) | frames per stream |\n"
             "|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+    if args.long > 0:
+        text += long_stream(args.long)
     write_text_atomic(args.out, text)
     print(args.out)
+
+
+def resident_mb() -> float:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
+
+
+def long_stream(minutes: float) -> str:
+    """One stream of ``minutes`` minutes through the library: frames and resident memory per minute."""
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.pipeline.stream import GestureStream
+
+    pipe = GesturePipeline.from_run()
+    wave = np.concatenate([load_real_recording(r) for r in RECORDINGS])
+    stream = GestureStream(pipe)
+    memory, frames, sent = [], 0, 0
+    start = time.perf_counter()
+    total = int(minutes * 60 * 16000)
+    while sent < total:
+        piece = np.resize(wave[sent % len(wave):], min(1600, total - sent))
+        frames += sum(len(b) for b in stream.push(piece))
+        sent += len(piece)
+        if sent % (60 * 16000) == 0:
+            memory.append(resident_mb())
+            print(f"minute {len(memory)}: {memory[-1]:.0f} MB", flush=True)
+    frames += sum(len(b) for b in stream.end())
+    seconds = time.perf_counter() - start
+    return (f"\nA {minutes:g}-minute stream through the library, fed as fast as it goes ({seconds:.0f} s): "
+            f"{frames} frames for {round(total / 16000 * 30)} expected; resident memory after each minute (MB): "
+            + ", ".join(f"{m:.0f}" for m in memory) + ".\n")
 
 
 if __name__ == "__main__":
