@@ -92,6 +92,32 @@ def test_the_mixamo_skeleton_comes_as_quaternions(server):
     assert q.shape == (30, 52, 4) and np.allclose(np.linalg.norm(q, axis=-1), 1, atol=1e-3)
 
 
+def test_a_stream_in_a_training_speakers_style(server):
+    from websockets.sync.client import connect
+
+    url, clip, _ = server
+    pcm = (sf.read(clip, dtype="float32")[0][:16000] * 32767).astype("<i2").tobytes()
+    with connect(url) as ws:
+        ws.send(json.dumps({"sample_rate": 16000}))
+        speakers = json.loads(ws.recv())["speakers"]
+    assert len(speakers) >= 8
+    poses = {}
+    for style in speakers[:2]:
+        with connect(url) as ws:
+            ws.send(json.dumps({"sample_rate": 16000, "style_from": style}))
+            assert json.loads(ws.recv())["ready"]
+            ws.send(pcm)
+            ws.send(json.dumps({"end": True}))
+            frames = []
+            while not (reply := json.loads(ws.recv())).get("done"):
+                frames += reply.get("frames", [])
+        poses[style] = np.array([f["poses"] for f in frames])
+    assert np.abs(poses[speakers[0]] - poses[speakers[1]]).mean() > 0.005  # the style changes the motion
+    with connect(url) as ws:
+        ws.send(json.dumps({"sample_rate": 16000, "style_from": 999}))
+        assert "style_from 999: one of the model's speakers" in json.loads(ws.recv())["error"]
+
+
 def test_bad_clients_get_one_line_errors_and_the_server_carries_on(server):
     from websockets.exceptions import ConnectionClosed
     from websockets.sync.client import connect

@@ -3,24 +3,26 @@
 Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
 
 1. The client's first message: ``{"sample_rate": 16000, "emotion": "auto"}``; also optional
-   ``emotion_weight`` (0-1, with a label), ``seed`` (integer) and ``skeleton`` (``smplx`` or ``mixamo``).
-   The server answers ``{"ready": true, "fps": 30, "skeleton": ..., "bones": [names]}``.
+   ``emotion_weight`` (0-1, with a label), ``seed`` (integer), ``skeleton`` (``smplx`` or ``mixamo``) and
+   ``style_from`` (a training speaker's BEAT id: gesture in that speaker's style). The server answers
+   ``{"ready": true, "fps": 30, "skeleton": ..., "bones": [names], "speakers": [ids for style_from]}``.
 2. Then binary messages: little-endian 16-bit mono PCM at that rate, in chunks of any size.
 3. At any time, text messages ``{"emotion": "anger", "emotion_weight": 0.8}`` change the emotion from the
    next update on (about every 0.25 s of audio); ``{"end": true}`` flushes the last frames, the server sends
    ``{"done": true, "total_frames": N}`` and closes.
 4. The server sends ``{"frames": [...], "audio_s": seconds received}`` as soon as frames are decided, in
    order, one frame per 1/30 s of audio: ``{"frame": i, "time": i / 30, "poses": [[x, y, z] x 55]
-   (axis-angle, SMPL-X order), "trans": [x, y, z]}``; with ``"skeleton": "mixamo"``, ``"rotations"``:
+   (axis-angle, SMPL-X order), "trans": [x, y, z]}``; with ``"skeleton": "mixamo"``,
+   ``"rotations"``:
    a unit quaternion ``[x, y, z, w]`` per bone of ``bones`` (Mixamo's 52) in place of ``poses``.
 5. A message the server cannot use (malformed JSON, an unknown key or emotion, text where audio is
    expected, a wrong sample rate) gets ``{"error": "one line"}``; a bad first message also closes the
    connection (code 1008). Other streams never notice.
 
 Streams share one pipeline; their updates run on a few worker threads (one per core, at most four; one
-stream's updates one after another), while each connection's messages are read as they arrive. A stream whose audio waited while the worker was busy is updated once for
-all of it (its frames then come in a larger batch), so a loaded server falls behind by a bounded amount
-instead of without end.
+stream's updates one after another), while each connection's messages are read as they arrive. A stream
+whose audio waited while the workers were busy is updated once for all of it (its frames then come in a
+larger batch), so a loaded server falls behind by a bounded amount instead of without end.
 """
 
 from __future__ import annotations
@@ -42,12 +44,23 @@ from emogesture.export.gltf import glb_bytes, sequence_to_gltf
 from emogesture.motion.rigs import rig_named
 from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
 from emogesture.pipeline.generate import GesturePipeline
+from emogesture.pipeline.perception import perception_of
 from emogesture.pipeline.stream import GestureStream, StreamFrames
 from emogesture.types import SMPLXSequence
 
 PAGE = Path(__file__).with_name("page.html")
 RATES = (8000, 48000)
-FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton"}
+FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from"}
+
+
+def speaker_styles(pipe: GesturePipeline) -> dict[int, np.ndarray]:
+    """The training speakers' mean style latents by BEAT speaker id (empty when the speech model has no
+    perception calibration, which holds them)."""
+    perception = perception_of(pipe.speech)
+    speakers = sorted(pipe.speech.loaded.metadata.speakers or [])
+    if perception is None or len(perception.voice.means) != len(speakers):
+        return {}
+    return {int(k): mean for k, mean in zip(speakers, perception.voice.means)}
 
 
 def open_stream(pipe: GesturePipeline, first: dict) -> tuple[GestureStream, int, str]:
@@ -65,8 +78,15 @@ def open_stream(pipe: GesturePipeline, first: dict) -> tuple[GestureStream, int,
     seed = first.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool):
         raise EmogestureError(f"seed {seed!r}: an integer")
+    style = None
+    if "style_from" in first:
+        styles = speaker_styles(pipe)
+        if first["style_from"] not in styles:
+            raise EmogestureError(f"style_from {first['style_from']!r}: one of the model's speakers "
+                                  f"{sorted(styles) or '(this model lists none)'}")
+        style = styles[first["style_from"]]
     stream = GestureStream(pipe, emotion=str(first.get("emotion", "auto")), emotion_weight=first.get("emotion_weight"),
-                           seed=seed)
+                           style=style, seed=seed)
     return stream, rate, str(skeleton)
 
 
@@ -110,7 +130,7 @@ class LiveServer:
             return
         rig = rig_named(skeleton)
         await connection.send(json.dumps({"ready": True, "fps": self.pipe.fps, "skeleton": skeleton,
-                                          "bones": list(rig.names)}))
+                                          "bones": list(rig.names), "speakers": sorted(speaker_styles(self.pipe))}))
         self.streams += 1
         try:
             await self._run(connection, stream, rate, skeleton)

@@ -76,10 +76,12 @@ class StreamFrames:
 
 class GestureStream:
     """One stream of speech into frames (module docstring). ``emotion``: ``auto``, ``own`` or a label, with
-    ``emotion_weight`` for a label (None = 1); ``seed``: every draw of the stream derives from it."""
+    ``emotion_weight`` for a label (None = 1); ``style``: a style latent ``[D]`` to gesture in (another
+    voice's, e.g. a training speaker's mean) instead of the speech's own; ``seed``: every draw of the stream
+    derives from it."""
 
     def __init__(self, pipe: GesturePipeline, *, emotion: str = "auto", emotion_weight: float | None = None,
-                 seed: int = 0, settings: StreamSettings | None = None) -> None:
+                 style: np.ndarray | None = None, seed: int = 0, settings: StreamSettings | None = None) -> None:
         self.pipe, self.seed = pipe, int(seed)
         self.settings = settings or StreamSettings()
         self.fps = pipe.fps
@@ -91,6 +93,7 @@ class GestureStream:
         self.updates = 0
         self.draws = 0  # noise draws so far (a new one at each update over sound)
         self.last: np.ndarray | None = None  # the last sent frame's features [D]
+        self.style = None if style is None else np.asarray(style, np.float32).reshape(1, -1)
         self.set_emotion(emotion, emotion_weight)
 
     @property
@@ -105,8 +108,8 @@ class GestureStream:
         if weight is not None and label is None:
             raise EmogestureError("emotion_weight needs an emotion label to blend toward")
         self.mode = mode
-        self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight)) \
-            if label is not None else None
+        self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight),
+                                style_from=self.style) if label is not None or self.style is not None else None
 
     def push(self, samples: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE,
              catch_up: bool = False) -> list[StreamFrames]:
