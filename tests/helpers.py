@@ -76,3 +76,44 @@ def make_root(root: Path, speakers=(1, 2), takes=(1, 2, 65, 66), seed=0) -> list
 def cli(*args) -> list[str]:
     """The ``emogesture`` command line run with this interpreter."""
     return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
+
+
+CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+
+
+def require_chromium() -> None:
+    """Skip without Debian's chromium and its driver (fail in CI, where `make test` installs them)."""
+    import os
+
+    import pytest
+
+    if not (Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists()):
+        if os.environ.get("CI"):
+            pytest.fail("chromium and chromium-driver are missing (make test installs them)")
+        pytest.skip("chromium and chromium-driver are missing (make test installs them)")
+
+
+def headless_chromium(*flags: str, size: str = "1400,1800"):
+    """A selenium driver of headless chromium with WebGL in software (SwiftShader) and autoplay allowed."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    options = Options()
+    options.binary_location = CHROMIUM
+    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--window-size={size}",
+                 "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                 "--autoplay-policy=no-user-gesture-required", *flags):
+        options.add_argument(flag)
+    return webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+
+
+def canvas_pixels(driver, selector: str) -> np.ndarray:
+    """The RGB pixels ``[H, W, 3]`` (int16) of the page's canvas at ``selector``."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    data = driver.execute_script(f"return document.querySelector({selector!r}).toDataURL('image/png');")
+    return np.asarray(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"), np.int16)

@@ -4,7 +4,6 @@ downloads arrive; a request without speech is a message in the page and the serv
 once get their own results. The server binds to 127.0.0.1, stops by itself after ten minutes, and is ended by
 its process id."""
 
-import io
 import os
 import signal
 import socket
@@ -21,8 +20,9 @@ import soundfile as sf
 from emogesture.app.page import perception_rows
 from emogesture.assets import DEMO_CLIPS
 
+from helpers import canvas_pixels, headless_chromium, require_chromium
+
 pytestmark = pytest.mark.slow
-CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 
 
 def _free_port() -> int:
@@ -33,10 +33,7 @@ def _free_port() -> int:
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    if not (Path(CHROMIUM).exists() and Path(DRIVER).exists()):
-        if os.environ.get("CI"):
-            pytest.fail("chromium and chromium-driver are missing (make test installs them)")
-        pytest.skip("chromium and chromium-driver are missing (make test installs them)")
+    require_chromium()
     pytest.importorskip("selenium")
     work = tmp_path_factory.mktemp("app")
     port = _free_port()
@@ -60,20 +57,6 @@ def server(tmp_path_factory):
     yield url, clip, proc
     os.killpg(proc.pid, signal.SIGTERM)
     proc.wait(timeout=30)
-
-
-def _browser():
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
-
-    options = Options()
-    options.binary_location = CHROMIUM
-    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1800",
-                 "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                 "--autoplay-policy=no-user-gesture-required"):
-        options.add_argument(flag)
-    return webdriver.Chrome(service=Service(DRIVER), options=options)
 
 
 def _open(driver, url):
@@ -103,19 +86,11 @@ def _video_src(driver, timeout=300):
     return driver.find_element(By.CSS_SELECTOR, "#video video").get_attribute("src")
 
 
-def _canvas(driver) -> np.ndarray:
-    from PIL import Image
-    import base64
-
-    data = driver.execute_script("return document.querySelector('#viewer canvas').toDataURL('image/png');")
-    return np.asarray(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"), np.int16)
-
-
 def test_upload_choose_anger_animate_watch_and_download(server, tmp_path):
     from selenium.webdriver.support.ui import WebDriverWait
 
     url, clip, proc = server
-    driver = _browser()
+    driver = headless_chromium()
     try:
         _open(driver, url)
         _request(driver, clip, "anger")
@@ -127,14 +102,14 @@ def test_upload_choose_anger_animate_watch_and_download(server, tmp_path):
         WebDriverWait(driver, 120).until(lambda d: d.execute_script(
             "return document.querySelector('#viewer canvas').dataset.loaded || null;"))
         time.sleep(1.0)
-        still = _canvas(driver)
+        still = canvas_pixels(driver, '#viewer canvas')
         background = still[2, 2]
         drawn = (np.abs(still - background).sum(-1) > 30).mean()
         assert 0.01 < drawn < 0.6  # the mannequin is on the canvas, and not everywhere
         driver.execute_script("document.querySelector('#viewer audio').play();")
         frames = [int(driver.execute_script("return document.querySelector('#viewer canvas').dataset.frame;"))]
         time.sleep(1.5)
-        moving = _canvas(driver)
+        moving = canvas_pixels(driver, '#viewer canvas')
         frames.append(int(driver.execute_script("return document.querySelector('#viewer canvas').dataset.frame;")))
         assert frames[1] > frames[0] and np.abs(moving - still).sum(-1).max() > 30  # it moves with the speech
         links = driver.execute_script("return [...document.querySelectorAll('#downloads a')].map(a => a.href);")
@@ -158,7 +133,7 @@ def test_a_bad_request_is_a_message_and_two_browsers_get_their_own_results(serve
     from selenium.webdriver.support.ui import WebDriverWait
 
     url, clip, proc = server
-    first, second = _browser(), _browser()
+    first, second = headless_chromium(), headless_chromium()
     try:
         _open(first, url)
         first.find_element(By.ID, "animate").click()  # no speech

@@ -20,6 +20,8 @@ import soundfile as sf
 
 from emogesture.assets import DEMO_CLIPS
 
+from helpers import canvas_pixels, headless_chromium, require_chromium
+
 pytestmark = pytest.mark.slow
 websockets = pytest.importorskip("websockets")
 
@@ -161,38 +163,18 @@ def test_bad_clients_get_one_line_errors_and_the_server_carries_on(server):
 def test_the_page_streams_a_fake_microphone_and_the_mannequin_moves(server, tmp_path):
     """Headless chromium with a fake microphone fed from a WAV file opens the page, streams, and the
     mannequin's canvas changes while frames arrive; the measured latency is on the page."""
-    import base64
-    import io
-    from pathlib import Path
-
-    from PIL import Image
-
-    chromium, driver_path = "/usr/bin/chromium", "/usr/bin/chromedriver"
-    if not (Path(chromium).exists() and Path(driver_path).exists()):
-        if os.environ.get("CI"):
-            pytest.fail("chromium and chromium-driver are missing (make test installs them)")
-        pytest.skip("chromium and chromium-driver are missing (make test installs them)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.support.ui import WebDriverWait
 
+    require_chromium()
     url, clip, proc = server
     wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
     microphone = tmp_path / "microphone.wav"
     sf.write(microphone, wave, sr, subtype="PCM_16")
-    options = Options()
-    options.binary_location = chromium
-    for flag in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1100,1000",
-                 "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                 "--autoplay-policy=no-user-gesture-required", "--use-fake-ui-for-media-stream",
-                 "--use-fake-device-for-media-stream", f"--use-file-for-fake-audio-capture={microphone}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver = headless_chromium("--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
+                               f"--use-file-for-fake-audio-capture={microphone}", size="1100,1000")
 
     def canvas():
-        data = driver.execute_script("return document.getElementById('view').toDataURL('image/png');")
-        return np.asarray(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"), np.int16)
+        return canvas_pixels(driver, "#view")
 
     try:
         driver.get(url.replace("ws://", "http://").removesuffix("/live") + "/")
