@@ -4,13 +4,14 @@ offline generation, an emotion changed mid-stream that shows in the motion, calm
 import numpy as np
 import pytest
 import soundfile as sf
-import torch
 
 from emogesture.assets import DEMO_CLIPS
 from emogesture.errors import EmogestureError
-from emogesture.motion import SkeletonBody
 from emogesture.pipeline.generate import GesturePipeline
 from emogesture.pipeline.stream import GestureStream
+from emogesture.types import SMPLXSequence
+
+from helpers import fk
 
 pytestmark = pytest.mark.slow
 
@@ -40,8 +41,7 @@ def stream(pipe, wave, chunks, sample_rate=16000, **options):
 
 
 def joints(poses, trans):
-    with torch.no_grad():
-        return SkeletonBody()(torch.from_numpy(poses), torch.from_numpy(trans)).numpy()
+    return fk(SMPLXSequence(poses=poses, trans=trans))
 
 
 def largest_jump(poses, trans):

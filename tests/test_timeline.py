@@ -7,15 +7,14 @@ import subprocess
 import numpy as np
 import pytest
 import soundfile as sf
-import torch
 
 from emogesture.data.real_speech import RECORDINGS, load_real_recording
 from emogesture.errors import EmogestureError
-from emogesture.motion import SkeletonBody, load_smplx_npz
+from emogesture.motion import load_smplx_npz
 from emogesture.pipeline.animate import AnimationRequest
 from emogesture.pipeline.timeline import EmotionTimeline, Keyframe, timeline_latents
 
-from helpers import cli
+from helpers import cli, fk
 
 
 def test_keyframes_parse_and_the_first_starts_at_zero():
@@ -75,8 +74,7 @@ def wrist_speed_and_height(npz):
     """Mean wrist speed (m/s) and height above the pelvis (m) in the first and the second half, leaving out
     5 s on both sides of the middle."""
     seq = load_smplx_npz(npz)
-    with torch.no_grad():
-        joints = SkeletonBody(seq.betas)(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
+    joints = fk(seq)
     wrists = joints[:, [20, 21]]
     speed = np.linalg.norm(np.diff(wrists, axis=0), axis=-1).mean(1) * seq.fps
     height = (wrists[:, :, 1] - joints[:, None, 0, 1]).mean(1)

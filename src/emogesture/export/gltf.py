@@ -31,7 +31,7 @@ from emogesture.fileio import atomic_output
 from emogesture.motion import JOINT_NAMES, rest_joints, rest_offsets
 from emogesture.motion.rigs import rig_named
 from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
-from emogesture.motion.skeleton import MANNEQUIN_TO_SMPLX
+from emogesture.motion.skeleton import MANNEQUIN_TO_SMPLX, shape_key
 from emogesture.types import SMPLXSequence
 
 # glTF constants: component types, buffer-view targets, primitive mode
@@ -43,16 +43,20 @@ _HAND_TO_WRIST = {"L_Hand": JOINT_NAMES.index("left_wrist"), "R_Hand": JOINT_NAM
 WOOD = (0.78, 0.60, 0.42, 1.0)
 
 
+def mannequin_skin(shape: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The wooden mannequin at rest for SMPL-X shape coefficients ``shape`` (None = the mean body):
+    ``positions [V, 3]`` float32, ``normals [V, 3]``, ``indices [F * 3]`` uint16, ``joints [V, 4]`` uint8
+    (SMPL-X joint indices) and ``weights [V, 4]`` float32 (rows sum to 1). Cached per shape."""
+    return _mannequin_skin(shape_key(shape))
+
+
 @lru_cache(maxsize=4)
-def mannequin_skin(shape_key: tuple[float, ...] = (0.0,) * 10) -> dict[str, np.ndarray]:
-    """The wooden mannequin at rest for a body shape: ``positions [V, 3]`` float32, ``normals [V, 3]``,
-    ``indices [F * 3]`` uint16, ``joints [V, 4]`` uint8 (SMPL-X joint indices) and ``weights [V, 4]``
-    float32 (rows sum to 1)."""
+def _mannequin_skin(key: tuple[float, ...]) -> dict[str, np.ndarray]:
     try:
         from mannequin import Mannequin
     except ImportError:
         raise EmogestureError("glb export needs the mannequin-x package (pip install mannequin-x)") from None
-    model = Mannequin("wooden", shape=np.asarray(shape_key, np.float32), flat_hand_mean=True)
+    model = Mannequin("wooden", shape=np.asarray(key, np.float32), flat_hand_mean=True)
     positions = np.asarray(model.vertices(model.rest_pose()), np.float32)
     try:  # the skin as the package binds it (its four strongest joints per vertex)
         index, weights = np.asarray(model._skin_joint_indices), np.asarray(model._skin_weights, np.float32)
@@ -120,9 +124,7 @@ def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture", skeleton: str
     rig = rig_named(skeleton)
     bone_of = np.full(len(JOINT_NAMES), -1)
     bone_of[list(rig.joints)] = np.arange(len(rig.joints))
-    shape = tuple(float(b) for b in np.pad(np.asarray(seq.betas, np.float32).reshape(-1)[:10],
-                                           (0, max(0, 10 - np.asarray(seq.betas).size))))
-    skin = mannequin_skin(shape)
+    skin = mannequin_skin(seq.betas)
     offsets, rest = rest_offsets(seq.betas), rest_joints(seq.betas)
     buf = _Buffer()
     mesh_attributes = {

@@ -71,7 +71,8 @@ def _mannequin_names() -> dict[str, int]:
 MANNEQUIN_TO_SMPLX: dict[str, int] = _mannequin_names()
 
 
-def _shape_key(shape: np.ndarray | None) -> tuple[float, ...]:
+def shape_key(shape: np.ndarray | None) -> tuple[float, ...]:
+    """The first 10 shape coefficients as a hashable tuple (zero-padded; None = the mean body)."""
     if shape is None:
         return (0.0,) * _SHAPE_DIM
     betas = np.asarray(shape, dtype=np.float64).reshape(-1)[:_SHAPE_DIM]
@@ -116,7 +117,7 @@ def rest_joints(shape: np.ndarray | None = None) -> np.ndarray:
     ``JAW_OFFSET`` (2 cm down, 3 cm forward) and ``EYE_OFFSET`` (+-3 cm sideways, 6 cm up,
     8 cm forward) from the head joint, independent of shape. Results are cached per shape.
     """
-    return _rest_joints_cached(_shape_key(shape)).copy()
+    return _rest_joints_cached(shape_key(shape)).copy()
 
 
 def rest_offsets(shape: np.ndarray | None = None) -> np.ndarray:
