@@ -83,17 +83,23 @@ def main() -> None:
         name = (f"r 1, {setting}, the stream of another window" if r == "other" else f"r {r:g}, {setting}")
         rows.append((name, row, ev.motion_stats(motion)))
         wrists = [round(rows[-1][2]["angular_speed"][j], 4) for j in ("left_wrist", "right_wrist")]
-        print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}), wrists,
+        print(name, json.dumps({k: round(row[k], 4) for k in ("GA", "FGD", "Speed", "Jerk", "Rhythm")}),
+              f"gain/spread {row['rhythm']['gain_over_spread']:.1f}", wrists,
               flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
              f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
              "low-pass's cutoff (`output_lowpass_hz`). Rhythm: rhythm gain "
-             "(`emogesture.eval.rhythm`); GT's gain / spread is in the gesture report.", "",
-             "| setting | rhythm gain | GA | FGD | Div | wrist speed (m/s) | jerk (m/s³) | wrists L / R (rad/frame) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "(`emogesture.eval.rhythm`), its spread (the standard deviation of the mismatched audio's scores) and the "
+             "gain in spreads; shifted 1 s: the score against the same take's audio 1 s later, which motion that "
+             "moves long before the speech's onsets follows too.", "",
+             "| setting | rhythm gain | spread | gain / spread | shifted 1 s | GA | FGD | Div | wrist speed (m/s) | "
+             "jerk (m/s³) | wrists L / R (rad/frame) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, row, st in rows:
-        lines.append(f"| {name} | {row['Rhythm']:.3f} | {row['GA']:.3f} | {row['FGD']:.2f} | {row['Div']:.2f} | "
+        rh = row["rhythm"]
+        lines.append(f"| {name} | {rh['gain']:.3f} | {rh['spread']:.4f} | {rh['gain_over_spread']:.1f} | "
+                     f"{rh['mismatched']['shifted 1 s']:.3f} | {row['GA']:.3f} | {row['FGD']:.2f} | {row['Div']:.2f} | "
                      f"{row['Speed']:.3f} | {row['Jerk']:.1f} | {st['angular_speed']['left_wrist']:.4f} / "
                      f"{st['angular_speed']['right_wrist']:.4f} |")
     write_text_atomic(args.out, "\n".join(lines) + "\n")

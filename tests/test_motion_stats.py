@@ -142,7 +142,7 @@ def test_fingers_body_turn_and_hand_height_have_known_answers():
 
 def test_onset_coupling_follows_the_strokes(tmp_path):
     """Arms that move on the speech's onsets couple far more than the same motion moved 0.6 s late."""
-    from emogesture.eval.motion_stats import file_statistics, onset_coupling, speech_of
+    from emogesture.eval.motion_stats import file_statistics, onset_coupling, onset_coupling_curve, speech_of
 
     rng = np.random.default_rng(0)
     fps, sr, seconds = 30.0, 16000, 12
@@ -164,6 +164,11 @@ def test_onset_coupling_follows_the_strokes(tmp_path):
     late = _pose(strokes(0.6))[1]
     c_on, c_late = onset_coupling(on, wave, sr, fps), onset_coupling(late, wave, sr, fps)
     assert c_on > 0.4 and c_late < c_on - 0.3
+    # the curve over lags finds each motion's delay: its peak lies where the strokes follow the onsets
+    for delay, joints in ((0.05, on), (0.6, late), (-0.5, _pose(strokes(-0.5))[1])):
+        curve = onset_coupling_curve(joints, wave, sr, fps, 1.0)
+        assert len(curve) == 61 and (np.argmax(curve) - 30) / fps == pytest.approx(delay, abs=0.1)
+    assert onset_coupling_curve(on, wave, sr, fps, 0.2).max() == pytest.approx(c_on)
     r = motion_statistics([(*_pose(strokes(0.05))[:2], fps, (wave, sr)), _pose(strokes(0.6))])
     assert r["onset_coupling"] == pytest.approx(c_on) and r["sequences_with_audio"] == 1
 
@@ -183,3 +188,26 @@ def test_onset_coupling_follows_the_strokes(tmp_path):
     assert speech_of(tmp_path / "smplxflame_30" / "b.npz") is None
     r = file_statistics(sorted((tmp_path / "smplxflame_30").glob("*.npz")))
     assert r["sequences_with_audio"] == 1 and r["onset_coupling"] == pytest.approx(c_on, abs=0.02)
+
+
+def test_rhythm_lag_curve_script_writes_its_report(tmp_path):
+    """The short version of experiments/rhythm_lag_curve.py: the bundled model on two takes of a small
+    corpus, two settings; the report's curves are real correlations at every lag and differ by setting."""
+    import sys
+    from pathlib import Path
+
+    names = make_root(tmp_path / "root", speakers=(1,), takes=(2, 66))
+    script = Path(__file__).resolve().parents[1] / "experiments" / "rhythm_lag_curve.py"
+    from emogesture.assets import bundled_model_file
+
+    subprocess.run([sys.executable, str(script), str(tmp_path / "root"), str(bundled_model_file("gesture")),
+                    str(tmp_path / "out"), "--split", "test", "--every", "1", "--settings", "shipped:",
+                    "no guidance:timing_guidance=1"], check=True, capture_output=True, timeout=300)
+    report = json.loads((tmp_path / "out" / "lag_curve_test.json").read_text())
+    assert report["takes"] == sorted(names) and len(report["lags_s"]) == 121
+    curves = {k: np.array(v) for k, v in report["curves"].items()}
+    assert set(curves) == {"ground truth", "shipped", "no guidance"}
+    assert all(np.all(np.abs(c) <= 1) and np.ptp(c) > 0 for c in curves.values())
+    assert not np.allclose(curves["shipped"], curves["no guidance"])
+    assert (tmp_path / "out" / "lag_curve_test.png").stat().st_size > 5000
+    assert "lag of the peak" in (tmp_path / "out" / "lag_curve_test.md").read_text()

@@ -44,7 +44,7 @@ import torch
 
 from emogesture.audio import onset_strength
 from emogesture.errors import EmogestureError, InputFileError
-from emogesture.eval.rhythm import arm_speed, envelope_at_frames, rhythm_score, smooth
+from emogesture.eval.rhythm import arm_speed, envelope_at_frames, lagged_correlation, smooth
 from emogesture.motion.rotations import axis_angle_to_matrix
 from emogesture.motion.skeleton import JOINT_NAMES
 
@@ -159,9 +159,18 @@ def onset_coupling(joints: np.ndarray, waveform: np.ndarray, sample_rate: int, f
                    max_lag_s: float = MOTION_STATS_CONSTANTS["coupling_lag_s"]) -> float:
     """The best correlation within ±``max_lag_s`` between the arm joints' mean speed (joints ``[T, 55, 3]``)
     and the onset envelope of ``waveform [N]`` at the motion frames, both smoothed alike (module docstring)."""
+    return float(onset_coupling_curve(joints, waveform, sample_rate, fps, max_lag_s).max())
+
+
+def onset_coupling_curve(joints: np.ndarray, waveform: np.ndarray, sample_rate: int, fps: float,
+                         max_lag_s: float) -> np.ndarray:
+    """The correlation of :func:`onset_coupling` at every lag from ``-max_lag_s`` to ``+max_lag_s``:
+    ``[2 L + 1]`` for ``L = round(max_lag_s × fps)`` frames, positive lags where the motion follows the
+    onsets. Its shape tells when the arms move relative to the speech: a person's peaks narrowly a
+    fraction of a second before the onsets."""
     speed = smooth(arm_speed(joints, fps), fps=fps)
     envelope = envelope_at_frames(onset_strength(waveform, sample_rate), sample_rate, len(speed), fps)
-    return rhythm_score(smooth(envelope, fps=fps), speed, max(0, int(round(max_lag_s * fps))))[0]
+    return lagged_correlation(smooth(envelope, fps=fps), speed, max(0, int(round(max_lag_s * fps))))
 
 
 @dataclass
