@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 
 from emogesture.assets import DEMO_CLIPS
@@ -42,6 +43,8 @@ def test_animate_writes_the_bytes_the_command_writes(pipe, tmp_path, capsys):
     assert result.perception_path == tmp_path / "py" / names[1]
     assert [p.source for p in result.perceived] == [str(TALK), str(ANGRY)]
     assert reported == result.summaries and len(result.sequences) == 1
+    heard = pipe.load_speech(TALK)  # the speech as heard comes back (the app plays it with the 3D view)
+    assert result.speech is not None and np.array_equal(result.speech, heard)
     seq = result.sequences[0]
     assert stdout == [*reported, f"{tmp_path / 'cli' / names[0]}  ({seq.num_frames} frames, {seq.duration:.2f} s)",
                       str(tmp_path / "cli" / names[1])]

@@ -13,7 +13,7 @@ from pathlib import Path
 import soundfile as sf
 
 from emogesture.assets import ASSETS
-from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
+from emogesture.audio import TARGET_SAMPLE_RATE
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
 from emogesture.export.fbx import blender_binary
@@ -86,7 +86,7 @@ class AppSession:
         with self.lock:
             result = animate(self.pipe, request, progress=True)
         listen = out / "speech.wav"  # what the 3D view plays with the animation
-        sf.write(listen, load_audio(request.speech)[0], TARGET_SAMPLE_RATE, subtype="PCM_16")
+        sf.write(listen, result.speech, TARGET_SAMPLE_RATE, subtype="PCM_16")
         first = result.files[0]
         video = next(p for p in first if p.suffix == ".mp4")
         glb = next(p for p in first if p.suffix == ".glb")

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
@@ -179,6 +180,8 @@ class AnimationResult:
     sequences: list[SMPLXSequence]
     #: True when ``skip_existing`` found every output in place (nothing was computed or written)
     skipped: bool = False
+    #: the speech as the pipeline heard it (16 kHz mono ``[N]`` float32; None when skipped)
+    speech: np.ndarray | None = None
 
 
 def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool = False,
@@ -250,4 +253,4 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     if not (request.skip_existing and perception_path.exists()):
         with atomic_output(perception_path, request.overwrite) as tmp:
             tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
-    return AnimationResult(files, perception_path, perceived, summaries, sequences)
+    return AnimationResult(files, perception_path, perceived, summaries, sequences, speech=wave)
