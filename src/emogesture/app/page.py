@@ -128,7 +128,8 @@ def build_app(session: AppSession):
                     skeleton = gr.Radio(["smplx", "mixamo"], value="smplx", label="skeleton of bvh, glb, fbx")
                 button = gr.Button("Animate", variant="primary", elem_id="animate")
             with gr.Column(scale=2):
-                video = gr.Video(label="video", show_label=False, elem_id="video")  # its badge would cover the label drawn in it
+                # no badge: it would cover the first line of the label drawn in the video
+                video = gr.Video(label="video", show_label=False, elem_id="video")
                 viewer = gr.HTML(value={}, html_template=VIEWER_HTML, js_on_load=VIEWER_JS, elem_id="viewer",
                                  label="3D view")
                 summary = gr.Markdown(elem_id="summary")
