@@ -7,7 +7,8 @@ CORPUS=$WORK/corpus30
 CACHE=$WORK/cache30
 $EG corpus --out "$CORPUS" --speakers 30 --resume --quiet
 $EG prepare "$CORPUS" --out "$CACHE" --set split_source=csv+actor --quiet
-# The tiny preset's generation settings (GenerationConfig.preset; since 2026-11-25: guidance 5, low-pass 4 Hz,
-# half the calibrated residual noise, 10 DDIM steps), for gesture runs trained before they last changed:
-# `emogesture bundle --set` applies them, no retraining.
-GENERATION=(--set timing_guidance=5 --set output_lowpass_hz=4 --set num_inference_steps=10 --set residual_scale=0.5)
+# The tiny preset's generation settings (GenerationConfig.preset; since 2026-11-26: guidance 6 on the onsets,
+# low-pass 4 Hz, half the calibrated residual noise, 10 DDIM steps), for gesture runs trained before they last
+# changed: `emogesture bundle --set` applies them, no retraining.
+GENERATION=(--set timing_guidance=6 --set timing_guidance_on=onsets --set output_lowpass_hz=4
+            --set num_inference_steps=10 --set residual_scale=0.5)

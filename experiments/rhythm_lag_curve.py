@@ -39,10 +39,10 @@ MAX_LAG_S = 2.0
 FPS = 30.0
 
 
-def parse_setting(text: str) -> tuple[str, dict[str, float]]:
+def parse_setting(text: str) -> tuple[str, dict[str, str]]:
+    """``name:key=value,...`` -> (name, {key: value}); each value is read as its setting's type later."""
     name, _, body = text.partition(":")
-    values = dict(item.split("=", 1) for item in body.split(",") if item)
-    return name, {k: float(v) for k, v in values.items()}
+    return name, dict(item.split("=", 1) for item in body.split(",") if item)
 
 
 def main() -> None:
@@ -72,8 +72,10 @@ def main() -> None:
     mean = {name: np.mean(c, axis=0) for name, c in curves.items()}
     lags = (np.arange(2 * lag + 1) - lag) / FPS
     shown = np.arange(0, 2 * lag + 1, 6)
-    settings = {name: {**{k: getattr(shipped, k) for k in ("timing_guidance", "residual_scale", "output_lowpass_hz")},
-                       **values} for name, values in args.settings}
+    shown_keys = ("timing_guidance", "timing_guidance_on", "residual_scale", "output_lowpass_hz")
+    settings = {name: {**{k: getattr(shipped, k) for k in shown_keys},
+                       **{k: type(getattr(shipped, k))(v) for k, v in values.items()}}
+                for name, values in args.settings}
     lines = [f"# Onset coupling at every lag: `{args.model}` on the {args.split} texts", "",
              f"{len(takes)} takes of the corpus's {args.split} texts (every {args.every}th, ordered by name), each "
              "generated whole (seed 0) and beside the corpus's own motion. Correlation of the arm joints' mean "

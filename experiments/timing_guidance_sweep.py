@@ -5,9 +5,10 @@ and the residual-noise scale r (``residual_scale``) of its :class:`GenerationCon
 and the same evaluator for every row; writes a markdown table.
 
 Usage: timing_guidance_sweep.py GESTURE_RUN CACHE EXTRACTOR_RUN OUT.md [--split val]
-       [--settings r,w,σ[,c] ...] [--other w,σ[,c]] [--seed N]
+       [--settings r,w,σ[,c] ...] [--other w,σ[,c]] [--seed N] [--on stream|onsets]
 (``--seed``: the sampling seed of every row, default 0; ``--settings``: the rows to generate, default the
-sweep below; ``--other``: the setting of the last row, which reads another window's timing stream.)
+sweep below; ``--other``: the setting of the last row, which reads another window's timing stream;
+``--on``: what every row's guidance scales, ``timing_guidance_on``, default the model's own.)
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from emogesture.checkpoints import load_model, split_use, write_text_atomic
 from emogesture.data.cache import open_cache
 from emogesture.eval.gesture import GestureEvaluator
 from emogesture.eval.rhythm import other_window_pairs
+from emogesture.models.generation import TIMING_GUIDANCE_ON
 from emogesture.pipeline.conditions import generate_from_conditions, model_conditions, window_seeds
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -57,6 +59,7 @@ def main() -> None:
     ap.add_argument("--settings", nargs="+", type=numbers(3), default=SETTINGS, metavar="r,w,σ[,c]")
     ap.add_argument("--other", type=numbers(2), default=(4.0, 0.0, 2.75), metavar="w,σ[,c]")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--on", choices=TIMING_GUIDANCE_ON, default=None)
     args = ap.parse_args()
     gesture = load_model(args.run, "gesture")
     if not gesture.config.hears_timing:
@@ -74,7 +77,8 @@ def main() -> None:
     rows.append(("ground truth", gt, gt_stats))
     for r, w, s, c in [*args.settings, ("other", *args.other)]:
         settings = replace(gesture.generation, residual_scale=1.0 if r == "other" else r, timing_guidance=w,
-                           output_smoothing=s, output_lowpass_hz=c)
+                           output_smoothing=s, output_lowpass_hz=c,
+                           timing_guidance_on=args.on or gesture.generation.timing_guidance_on)
         stream = conds[-1][other] if r == "other" else conds[-1]
         motion = generate_from_conditions(gesture, [*conds[:-1], stream], seeds, generation=settings,
                                           residual=settings.residual_scale > 0)
@@ -87,7 +91,8 @@ def main() -> None:
               f"gain/spread {row['rhythm']['gain_over_spread']:.1f}", wrists,
               flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
-             f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator. "
+             f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator; "
+             f"guidance on the {args.on or gesture.generation.timing_guidance_on} (`timing_guidance_on`). "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
              "low-pass's cutoff (`output_lowpass_hz`). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`), its spread (the standard deviation of the mismatched audio's scores) and the "

@@ -234,7 +234,8 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     # the generation settings (guidance, output smoothing and low-pass) act at generation only, never on
     # the prior's reconstruction; smoothing and the low-pass lower the frame-to-frame change
     g = model.generation
-    assert (g.timing_guidance, g.output_smoothing, g.output_lowpass_hz) == (5.0, 0.0, 4.0)  # the tiny preset's
+    assert (g.timing_guidance, g.timing_guidance_on) == (6.0, "onsets")  # the tiny preset's
+    assert (g.output_smoothing, g.output_lowpass_hz) == (0.0, 4.0)
 
     def settings(guidance, smoothing, cutoff):
         return dataclasses.replace(g, timing_guidance=guidance, output_smoothing=smoothing, output_lowpass_hz=cutoff)
@@ -243,6 +244,13 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     for setting in ((1.0, 0.0, 0.0), (3.0, 0.0, 0.0), (1.0, 2.0, 0.0), (1.0, 0.0, 2.75)):
         made[setting] = generate_from_conditions(model, conds, seeds, generation=settings(*setting), residual=False)
     assert not np.allclose(made[1.0, 0.0, 0.0], made[3.0, 0.0, 0.0])
+    # guidance on the onsets alone: the deaf decoding keeps the loudness, so the guided motion differs
+    # from guidance on the whole stream, and without guidance (w = 1) nothing does
+    for w in (3.0, 1.0):
+        on = {which: generate_from_conditions(model, conds, seeds, residual=False, generation=dataclasses.replace(
+            settings(w, 0.0, 0.0), timing_guidance_on=which)) for which in ("stream", "onsets")}
+        assert np.allclose(on["stream"], on["onsets"]) == (w == 1.0)
+    np.testing.assert_array_equal(on["stream"], made[1.0, 0.0, 0.0])
     change = {k: np.abs(np.diff(v, axis=1)).mean() for k, v in made.items()}
     assert change[1.0, 2.0, 0.0] < 0.8 * change[1.0, 0.0, 0.0] and change[1.0, 0.0, 2.75] < 0.8 * change[1.0, 0.0, 0.0]
     model.generation = settings(4.0, 1.75, 2.75)

@@ -276,7 +276,8 @@ def test_tiny_gesture_preset_hears_timing_where_it_hears_speech_and_paper_stays_
 
     for variant in ("joint", "disjoint"):
         vae, g = GestureModelConfig.preset("tiny", variant).vae, GenerationConfig.preset("tiny", variant)
-        assert (vae.low_frequency_path, vae.timing_features, g.timing_guidance) == (16, 2, 5.0)
+        assert (vae.low_frequency_path, vae.timing_features) == (16, 2)
+        assert (g.timing_guidance, g.timing_guidance_on) == (6.0, "onsets")
         assert (g.output_smoothing, g.output_lowpass_hz, g.num_inference_steps) == (0.0, 4.0, 10)  # paper: 50 steps
     for variant in ("no_prior", "no_audio"):  # the ablations keep the design without the timing stream
         c, g = GestureModelConfig.preset("tiny", variant), GenerationConfig.preset("tiny", variant)

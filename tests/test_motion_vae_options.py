@@ -152,6 +152,17 @@ def test_decode_pair_gives_the_decoding_with_and_without_the_stream():
         torch.testing.assert_close(pair[0], heard, atol=1e-5, rtol=1e-5)
         torch.testing.assert_close(pair[1], deaf, atol=1e-5, rtol=1e-5)
     assert not torch.allclose(heard, deaf)
+    # a deaf decoding that keeps one column hears that column and zeros in the other
+    kept = stream.clone()
+    kept[..., 1] = 0
+    with torch.no_grad():
+        pair = vae.decode_pair(z, timing=stream, keep=(0,))
+        torch.testing.assert_close(pair[1], vae.decode(z, timing=kept), atol=1e-5, rtol=1e-5)
+    assert not torch.allclose(pair[1], deaf)
+    with pytest.raises(ValueError, match="keep"):
+        vae.decode_pair(z, timing=stream, keep=(2,))
+    with pytest.raises(ConfigError, match="timing_guidance_on"):
+        GenerationConfig(timing_guidance_on="loudness")
     with pytest.raises(ConfigError, match="timing_guidance"):
         GenerationConfig(timing_guidance=-1)
     with pytest.raises(ConfigError, match="output_smoothing"):

@@ -22,6 +22,10 @@ LEGACY_KEYS = {("vae", "timing_guidance"): "timing_guidance", ("vae", "output_sm
                ("diffusion", "residual_scale"): "residual_scale"}
 
 
+#: :attr:`GenerationConfig.timing_guidance_on`'s values.
+TIMING_GUIDANCE_ON = ("stream", "onsets")
+
+
 @dataclass
 class GenerationConfig:
     """The steps after training, in the order they run (:mod:`emogesture.pipeline.postprocess`)."""
@@ -35,6 +39,12 @@ class GenerationConfig:
     #: ``D(z, zeros) + w · (D(z, stream) − D(z, zeros))``, the stream's part scaled by ``w`` (guidance on
     #: the stream, as classifier-free guidance does on a condition; 1 = as trained).
     timing_guidance: float = 1.0
+    #: What the decoding that guidance extrapolates from does not hear: ``"stream"``, the whole timing
+    #: stream (``D(z, zeros)`` above); ``"onsets"``, only its onset strength, the loudness heard in both
+    #: decodings, so that guidance scales when the syllables start and not where the speech is loud (the
+    #: loudness moved the arms up to a second early, in time with audio a second off as well as with the
+    #: window's own; experiments/README.md, "When the arms move").
+    timing_guidance_on: str = "stream"
     #: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
     output_smoothing: float = 0.0
     #: Cutoff, in Hz at the motion's 30 fps, of a zero-phase low-pass over the decoded features (0 = none;
@@ -53,6 +63,9 @@ class GenerationConfig:
         if min(self.residual_scale, self.timing_guidance, self.output_smoothing) < 0:
             raise ConfigError(f"generation: residual_scale, timing_guidance and output_smoothing must be ≥ 0, got "
                               f"{self.residual_scale}, {self.timing_guidance}, {self.output_smoothing}")
+        if self.timing_guidance_on not in TIMING_GUIDANCE_ON:
+            raise ConfigError(f"generation: timing_guidance_on must be one of {', '.join(TIMING_GUIDANCE_ON)}, "
+                              f"got {self.timing_guidance_on!r}")
         if not 0 <= self.output_lowpass_hz < FPS / 2:
             raise ConfigError(f"generation: output_lowpass_hz must be 0 (off) or below {FPS / 2:g} Hz (half the "
                               f"{FPS} fps), got {self.output_lowpass_hz}")
@@ -63,12 +76,13 @@ class GenerationConfig:
     def preset(cls, name: str, variant: str = "joint") -> "GenerationConfig":
         """``paper``: 50 DDIM steps and nothing after sampling. ``tiny``: 10 DDIM steps, half the calibrated
         residual noise, and — for the variants whose decoder hears the speech's timing (``joint``,
-        ``disjoint``) — timing guidance 5 with a 4-Hz low-pass, chosen together on the val split
-        (``experiments/reports/bundled_model/generation_sweep_val.md``)."""
+        ``disjoint``) — timing guidance 6 on the onsets (``timing_guidance_on="onsets"``) with a 4-Hz
+        low-pass, chosen together on the val split (``experiments/reports/rhythm/onset_guidance_val.md``)."""
         if name == "paper":
             return cls()
         if name == "tiny":
-            timing = dict(timing_guidance=5.0, output_lowpass_hz=4.0) if variant in ("joint", "disjoint") else {}
+            timing = (dict(timing_guidance=6.0, timing_guidance_on="onsets", output_lowpass_hz=4.0)
+                      if variant in ("joint", "disjoint") else {})
             return cls(num_inference_steps=10, residual_scale=0.5, **timing)
         raise ConfigError(f"unknown generation preset {name!r}; known: paper, tiny")
 

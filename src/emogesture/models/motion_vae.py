@@ -262,16 +262,20 @@ class MotionVAE(nn.Module):
         ``timing [B, T', timing_features]`` (``T' >= T``), required when ``timing_features > 0``."""
         return self._decode(z, frames, timing)
 
-    def decode_pair(self, z: torch.Tensor, frames: int | None = None,
-                    timing: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """The decoding with the timing stream and with a zero stream (what a silent window gives), run
-        as one batch: ``(heard [B, T, 282], deaf [B, T, 282])``. Timing guidance (``timing_guidance``)
-        extrapolates from ``deaf`` through ``heard``; the pipeline does it in raw feature units, where
-        the 6D columns live (:func:`emogesture.motion.guide_features`).
+    def decode_pair(self, z: torch.Tensor, frames: int | None = None, timing: torch.Tensor | None = None,
+                    keep: tuple[int, ...] = ()) -> tuple[torch.Tensor, torch.Tensor]:
+        """The decoding with the timing stream ``[B, T, F]`` and with a zero stream (what a silent window
+        gives) but for its columns ``keep``, run as one batch: ``(heard [B, T, 282], deaf [B, T, 282])``.
+        Timing guidance (``timing_guidance``) extrapolates from ``deaf`` through ``heard``; the pipeline
+        does it in raw feature units, where the 6D columns live (:func:`emogesture.motion.guide_features`).
         """
         if timing is None:
             raise ValueError("decode_pair needs the timing stream")
-        both = self._decode(torch.cat([z, z]), frames, torch.cat([timing, torch.zeros_like(timing)]))
+        if any(not 0 <= k < timing.shape[-1] for k in keep):
+            raise ValueError(f"decode_pair: keep {list(keep)} names columns beyond the stream's {timing.shape[-1]}")
+        deaf = torch.zeros_like(timing)
+        deaf[..., list(keep)] = timing[..., list(keep)]
+        both = self._decode(torch.cat([z, z]), frames, torch.cat([timing, deaf]))
         return both[: len(z)], both[len(z):]
 
     def _decode(self, z: torch.Tensor, frames: int | None, timing: torch.Tensor | None) -> torch.Tensor:

@@ -16,7 +16,7 @@ import torch
 from torch import nn
 
 from emogesture.audio import mfcc_from_log_mel
-from emogesture.audio.timing import timing_stream
+from emogesture.audio.timing import TIMING_FEATURES, timing_stream
 from emogesture.checkpoints import LoadedModel
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
@@ -180,6 +180,8 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
     guided = guidance != 1.0 and timing is not None  # guidance runs in raw feature units, where the 6D columns live
     if guided:
         spec = from_dict(MotionFeatureSpec, gesture.metadata.require("features", gesture.path))
+        # "onsets": the deaf decoding keeps the stream's loudness (the column of TIMING_FEATURES)
+        keep = (TIMING_FEATURES.index("loudness"),) if settings.timing_guidance_on == "onsets" else ()
     m, s = torch.from_numpy(mean).to(z.device), torch.from_numpy(std).to(z.device)
     out = np.empty((len(z), frames, vae.feature_dim), np.float32)  # filled batch by batch, denormalised
     with bf16_weights(precision, model.prior):
@@ -188,7 +190,8 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
                       if reads and timing is not None else None)
             with autocast(precision, z.device):
                 if guided:
-                    heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream)
+                    heard, deaf = model.prior.decode_pair(z[i: i + batch_size], frames=frames, timing=stream,
+                                                          keep=keep)
                 else:
                     x = model.prior.decode(z[i: i + batch_size], frames=frames, timing=stream)
             # to raw units first: the filters are unit-gain, so they commute with the affine map
