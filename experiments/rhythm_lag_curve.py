@@ -59,23 +59,24 @@ def main() -> None:
     takes = sorted(t for t, s in split.items() if s == args.split)[::args.every]
     pipe = GesturePipeline.from_run(args.model)
     shipped = pipe.generation
+    # each setting's overrides read as the types of the model's own settings, once
+    typed = {name: {k: type(getattr(shipped, k))(v) for k, v in values.items()} for name, values in args.settings}
+    configs = {name: replace(shipped, **values) for name, values in typed.items()}
     lag = int(round(MAX_LAG_S * FPS))
-    curves: dict[str, list[np.ndarray]] = {"ground truth": [], **{name: [] for name, _ in args.settings}}
+    curves: dict[str, list[np.ndarray]] = {"ground truth": [], **{name: [] for name in configs}}
     for take in tqdm(takes, desc="takes", unit="take"):
         wave, sr = load_audio(args.corpus / "wave16k" / f"{take}.wav")
         truth = load_smplx_npz(args.corpus / "smplxflame_30" / f"{take}.npz")
         curves["ground truth"].append(onset_coupling_curve(sequence_joints(pipe, truth), wave, sr, FPS, MAX_LAG_S))
-        for name, values in args.settings:
-            pipe.generation = replace(shipped, **{k: type(getattr(shipped, k))(v) for k, v in values.items()})
+        for name, config in configs.items():
+            pipe.generation = config
             seq = pipe.generate(wave, seed=0)[0]
             curves[name].append(onset_coupling_curve(sequence_joints(pipe, seq), wave, sr, FPS, MAX_LAG_S))
     mean = {name: np.mean(c, axis=0) for name, c in curves.items()}
     lags = (np.arange(2 * lag + 1) - lag) / FPS
     shown = np.arange(0, 2 * lag + 1, 6)
     shown_keys = ("timing_guidance", "timing_guidance_on", "residual_scale", "output_lowpass_hz")
-    settings = {name: {**{k: getattr(shipped, k) for k in shown_keys},
-                       **{k: type(getattr(shipped, k))(v) for k, v in values.items()}}
-                for name, values in args.settings}
+    settings = {name: {**{k: getattr(shipped, k) for k in shown_keys}, **values} for name, values in typed.items()}
     lines = [f"# Onset coupling at every lag: `{args.model}` on the {args.split} texts", "",
              f"{len(takes)} takes of the corpus's {args.split} texts (every {args.every}th, ordered by name), each "
              "generated whole (seed 0) and beside the corpus's own motion. Correlation of the arm joints' mean "

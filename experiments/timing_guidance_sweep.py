@@ -69,6 +69,7 @@ def main() -> None:
     cache = open_cache(args.cache)
     conds = model_conditions(gesture, cache, args.split, speech)
     seeds = window_seeds(args.seed, len(conds[0]))
+    on = args.on or gesture.generation.timing_guidance_on
     other = other_window_pairs(cache.split(args.split).text, 0, 1)[0]
     ev = GestureEvaluator(cache, args.split, load_model(args.extractor, "extractor"))
     rows = []
@@ -78,7 +79,7 @@ def main() -> None:
     for r, w, s, c in [*args.settings, ("other", *args.other)]:
         settings = replace(gesture.generation, residual_scale=1.0 if r == "other" else r, timing_guidance=w,
                            output_smoothing=s, output_lowpass_hz=c,
-                           timing_guidance_on=args.on or gesture.generation.timing_guidance_on)
+                           timing_guidance_on=on)
         stream = conds[-1][other] if r == "other" else conds[-1]
         motion = generate_from_conditions(gesture, [*conds[:-1], stream], seeds, generation=settings,
                                           residual=settings.residual_scale > 0)
@@ -92,7 +93,7 @@ def main() -> None:
               flush=True)
     lines = [f"# Timing guidance, output smoothing and residual noise of `{args.run}` ({args.split} split)", "",
              f"Split use: {json.dumps(use)}. One trained model; every row the same seeds ({args.seed}) and evaluator; "
-             f"guidance on the {args.on or gesture.generation.timing_guidance_on} (`timing_guidance_on`). "
+             f"guidance on the {on} (`timing_guidance_on`). "
              "r: residual-noise scale; w: timing guidance; σ: output smoothing (frames); low-pass: the output "
              "low-pass's cutoff (`output_lowpass_hz`). Rhythm: rhythm gain "
              "(`emogesture.eval.rhythm`), its spread (the standard deviation of the mismatched audio's scores) and the "
