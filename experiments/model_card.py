@@ -99,6 +99,22 @@ def real_rows(real: dict) -> str:
         f"{m['reference']['wrist_distance_median']:.3f} m |"])
 
 
+def level_paragraph(rows: dict) -> str:
+    """What the recording's level does to the perception (perception_shift's level rows), or nothing."""
+    level = {name: r for name, r in rows.items() if name.startswith("recording level")}
+    if not level:
+        return ""
+
+    def heard(r: dict) -> str:
+        top = max(r["perceived_emotions"].items(), key=lambda kv: kv[1])
+        return f"correct in {r['perceived_correctly']:.0%} of the windows, mostly as {top[0]} ({top[1]:.0%})"
+
+    parts = "; ".join(f"{name[len('recording level '):]}: {heard(r)}" for name, r in level.items())
+    return ("\n  The recording's level changes what it hears (the same held-out takes, only louder or quieter; "
+            f"{parts}). The training voices' loudness goes with their emotion, and the perception learned it: "
+            "a quiet or a loud microphone moves the perceived emotion, so set the emotion yourself when in doubt.\n")
+
+
 def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     bundle, report = Path(bundle), Path(report)
     real = json.loads((report / "real" / "real_speech.json").read_text())
@@ -147,6 +163,7 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     heard = Counter(k for r in real["real"].values() for k in r["heard"])
     heard_real = ", ".join(f"{k} {n}" for k, n in heard.most_common()) + f" of {sum(heard.values())} windows"
     seams_text = seams_paragraph(gesture["checks"])
+    level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model
 
 The model `emogesture generate` uses when no `--model` is given: the `tiny` speech disentanglement
@@ -227,7 +244,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   Changed voices are misheard, and it is mostly the voice distance that notices (the emotion
   latent alone often looks familiar): `auto` blends {blended_lo:.0%} to {blended_hi:.0%} of the
   windows of the changed recordings toward neutral, and {blended_orig:.1%} of the unchanged ones.
-
+{level_text}
 {rhythm_text}
 {seams_text}
 - **Motion.** The gestures are those of a procedural corpus: upper body and fingers (legs and face

@@ -12,8 +12,10 @@ onset coupling, for:
   corpus (every ``EVERY``-th), with their speech;
 - **model, real speech**: the same for the real read speech of :mod:`emogesture.data.real_speech`.
 
-The real take's column is quoted, not measured here: BEAT speaker 2, 64 s of SMPL-X motion capture,
-measured with the same definitions outside the project (BEAT is CC BY-NC and is not part of it).
+The onset coupling of several sequences is their pooled lag curve's best value (its lag beside it), so
+chance does not add to it (:mod:`emogesture.eval.motion_stats`). The real take's column is quoted, not
+measured here: BEAT speaker 2, 64 s of SMPL-X motion capture, measured with the same definitions outside
+the project (BEAT is CC BY-NC and is not part of it; one take, so pooling does not change its coupling).
 
 Usage: python experiments/motion_realism.py CORPUS OUT_DIR [GESTURE_MODEL] [EVERY]
 """
@@ -45,6 +47,7 @@ ROWS = (("finger curl, mean joint angle (deg)", "finger_curl_deg", "{:.1f}"),
         ("hands together (wrists < 0.2 m apart)", "hands_together_share", "{:.1%}"),
         ("wrist speed mean (m/s)", "wrist_speed_mean", "{:.3f}"),
         ("onset coupling", "onset_coupling", "{:.3f}"),
+        ("its lag (s; negative: the arms move first)", "onset_coupling_lag_s", "{:+.2f}"),
         ("seconds", "seconds", "{:.0f}"))
 
 

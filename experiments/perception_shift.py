@@ -4,7 +4,8 @@ The held-out takes of the synthetic corpus — those of the voices the speech mo
 cache splits by speaker (``prepare --set split_source=csv+actor``), else every take of the split — are
 played through changes that move a voice away from the training voices: pitch (and formants) ±4
 semitones with the tempo kept, tempo ±15 % with the pitch kept, white noise at 10 dB SNR, a telephone
-band, a reverberant room (RT60 0.5 s), and pink noise alone (no speech at all). The changes are those of
+band, a reverberant room (RT60 0.5 s), a recording 10 dB quieter and one 6 dB louder (clipped at full scale,
+as a recorder would), and pink noise alone (no speech at all). The changes are those of
 :mod:`emogesture.audio.wave_augment`, with fixed settings. For each, over every 10-s window: how often the
 perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
 the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
@@ -64,6 +65,8 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
         "white noise, 10 dB SNR": lambda w: add_noise(w, rng, 10.0, "white").astype(f32),
         "telephone band 300-3400 Hz": lambda w: telephone(w).astype(f32),
         "reverberant room, RT60 0.5 s": lambda w: reverberant(w, rng).astype(f32),
+        "recording level -10 dB": lambda w: (w * 10 ** (-10 / 20)).astype(f32),
+        "recording level +6 dB, clipped": lambda w: np.clip(w * 10 ** (6 / 20), -1.0, 1.0).astype(f32),
         "pink noise, no speech": lambda w: pink(len(w), rng),
     }
     rows = {}

@@ -190,6 +190,37 @@ def test_onset_coupling_follows_the_strokes(tmp_path):
     assert r["sequences_with_audio"] == 1 and r["onset_coupling"] == pytest.approx(c_on, abs=0.02)
 
 
+def test_onset_coupling_of_many_short_sequences_is_not_raised_by_chance():
+    """Over many short sequences the curves are pooled before the best lag is taken: motion that has nothing
+    to do with its speech reads near zero (the best of each sequence's own curve reads clearly above it),
+    motion on the onsets reads high, and sequences at two frame rates pool at the same lags."""
+    rng = np.random.default_rng(1)
+    sr, seconds = 16000, 8
+
+    def take(fps: float, follow: bool) -> tuple:
+        onsets = np.sort(rng.uniform(0.0, seconds - 0.15, 16))
+        wave = 0.002 * rng.normal(size=seconds * sr)
+        for o in onsets:
+            n = np.arange(int(0.15 * sr))
+            wave[int(o * sr): int(o * sr) + len(n)] += 0.3 * np.sin(2 * np.pi * 200 * n / sr) * np.hanning(len(n))
+        frames = np.arange(int(seconds * fps)) / fps
+        times = onsets + 0.05 if follow else rng.uniform(0.0, seconds - 0.15, 16)
+        poses = np.zeros((len(frames), 55, 3))
+        poses[:, J["right_shoulder"], 2] = 1.3
+        poses[:, J["right_elbow"], 1] = 0.8 * sum(np.exp(-0.5 * ((frames - t) / 0.08) ** 2) for t in times)
+        poses, joints = _pose(poses)[:2]
+        return poses, joints, fps, (wave, sr)
+
+    from emogesture.eval.motion_stats import onset_coupling
+
+    unrelated = [take(30.0 if i % 2 else 60.0, follow=False) for i in range(24)]
+    r = motion_statistics(unrelated)
+    by_sequence = np.mean([onset_coupling(j, w, s, f) for _, j, f, (w, s) in unrelated])
+    assert abs(r["onset_coupling"]) < 0.04 < by_sequence
+    following = motion_statistics([take(30.0 if i % 2 else 60.0, follow=True) for i in range(6)])
+    assert following["onset_coupling"] > 0.3 and following["onset_coupling_lag_s"] == pytest.approx(0.05, abs=0.1)
+
+
 def test_rhythm_lag_curve_script_writes_its_report(tmp_path):
     """The short version of experiments/rhythm_lag_curve.py: the bundled model on two takes of a small
     corpus, two settings; the report's curves are real correlations at every lag and differ by setting."""

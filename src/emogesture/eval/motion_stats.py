@@ -28,8 +28,12 @@ be held against each other and against real conversational motion (docs/design.m
 - **Onset coupling**, for sequences with their audio: the best Pearson correlation, within
   ``coupling_lag_s``, between the arm joints' mean speed and the speech's onset envelope (the positive
   spectral flux of a log-mel spectrogram, read at the motion frames), both smoothed alike
-  (:mod:`emogesture.eval.rhythm`'s functions, over the whole sequence). Real conversational motion
-  capture couples weakly (about 0.05); arms that tick on every syllable couple several times more.
+  (:mod:`emogesture.eval.rhythm`'s functions, over the whole sequence). Over several sequences the
+  correlation curves (one value per lag) are averaged, weighted by length, before the best lag is taken:
+  the best of each short sequence's own curve would read about 0.06 for motion that has nothing to do
+  with its speech (the maximum of a dozen noisy correlations), more than a real speaker's coupling. Real
+  conversational motion capture couples weakly (about 0.05, one 64-s take); arms that tick on every
+  syllable couple several times more.
 """
 
 from __future__ import annotations
@@ -190,8 +194,9 @@ class _Pool:
     yaw_std: list[float] = field(default_factory=list)
     pitch_std: list[float] = field(default_factory=list)
     lengths: list[int] = field(default_factory=list)
-    coupling: list[float] = field(default_factory=list)
+    coupling: list[np.ndarray] = field(default_factory=list)  # per sequence, its correlation at each lag
     coupling_lengths: list[int] = field(default_factory=list)
+    coupling_fps: list[float] = field(default_factory=list)
     frames: int = 0
     seconds: float = 0.0
 
@@ -211,7 +216,8 @@ def motion_statistics(sequences: Sequence[tuple],
     "wrist_distance_median" (m), "wrist_height_p10/_median/_p90" (m above the pelvis), "hands_together_share",
     "finger_curl_deg", "finger_curl_left_deg", "finger_curl_right_deg", "finger_change_deg",
     "root_turn_deg", "torso_yaw_std_deg", "torso_pitch_std_deg" (per sequence, frame-weighted means),
-    "onset_coupling" (frame-weighted mean over the sequences with audio; None without), "sequences",
+    "onset_coupling" (the frame-weighted mean correlation curve over the sequences with audio, at its best
+    lag; None without) and "onset_coupling_lag_s" (that lag; positive: the arms follow the onsets), "sequences",
     "sequences_with_audio", "frames", "seconds", "constants"}``. Sequences shorter than 2 frames are skipped.
     """
     pool = _Pool()
@@ -238,8 +244,10 @@ def motion_statistics(sequences: Sequence[tuple],
         pool.pitch_std.append(float(pitch.std()))
         pool.lengths.append(len(poses))
         if audio is not None:
-            pool.coupling.append(onset_coupling(joints, np.asarray(audio[0]), int(audio[1]), fps, coupling_lag_s))
+            pool.coupling.append(onset_coupling_curve(joints, np.asarray(audio[0]), int(audio[1]), fps,
+                                                      coupling_lag_s))
             pool.coupling_lengths.append(len(poses))
+            pool.coupling_fps.append(float(fps))
         pool.frames += len(poses)
         pool.seconds += len(poses) / fps
     if not pool.angular:
@@ -248,6 +256,13 @@ def motion_statistics(sequences: Sequence[tuple],
     speed = np.concatenate(pool.wrist_speed)
     heights = np.concatenate(pool.wrist_height)
     fingers = np.concatenate(pool.fingers)
+
+    curve, lag_s = None, None
+    if pool.coupling:  # each curve read at the first one's lags (seconds), so frame rates may differ
+        lags = [(np.arange(len(c)) - len(c) // 2) / f for c, f in zip(pool.coupling, pool.coupling_fps)]
+        curve = np.average(np.stack([np.interp(lags[0], x, c) for x, c in zip(lags, pool.coupling)]), axis=0,
+                           weights=pool.coupling_lengths)
+        lag_s = round(float(lags[0][int(curve.argmax())]), 3)
 
     def per_sequence(values: list[float]) -> float:
         return float(np.average(values, weights=pool.lengths))
@@ -272,7 +287,8 @@ def motion_statistics(sequences: Sequence[tuple],
         "root_turn_deg": per_sequence(pool.root_turn),
         "torso_yaw_std_deg": per_sequence(pool.yaw_std),
         "torso_pitch_std_deg": per_sequence(pool.pitch_std),
-        "onset_coupling": float(np.average(pool.coupling, weights=pool.coupling_lengths)) if pool.coupling else None,
+        "onset_coupling": float(curve.max()) if curve is not None else None,
+        "onset_coupling_lag_s": lag_s,
         "sequences": len(pool.angular), "sequences_with_audio": len(pool.coupling), "frames": pool.frames,
         "seconds": round(pool.seconds, 2),
         "constants": {"still_speed_m_s": still_speed, "open_elbow_deg": open_elbow_deg, "speed_quantile": quantile,
@@ -300,7 +316,7 @@ def motion_stats_markdown(results: dict[str, dict]) -> str:
             ("hand shape change, joint angle std (deg)", "finger_change_deg", "{:.1f}"),
             ("body turn: root rotation about its mean (deg)", "root_turn_deg", "{:.2f}"),
             ("torso yaw / pitch std (deg)", "torso", None),
-            ("onset coupling (arm speed ~ onsets, best r within 0.2 s)", "onset_coupling", "{:.3f}"),
+            ("onset coupling (arm speed ~ onsets, best r within 0.2 s) at its lag", "onset_coupling", None),
             ("sequences / seconds", "sequences", None))
 
     def cell(r: dict, key: str, fmt: str | None) -> str:
@@ -310,6 +326,8 @@ def motion_stats_markdown(results: dict[str, dict]) -> str:
             return " / ".join(f"{r[f'wrist_height_{q}']:.2f}" for q in ("p10", "median", "p90"))
         if key == "finger_curl_sides":
             return f"{r['finger_curl_left_deg']:.1f} / {r['finger_curl_right_deg']:.1f}"
+        if key == "onset_coupling":
+            return "–" if r.get(key) is None else f"{r[key]:.3f} at {r['onset_coupling_lag_s']:+.2f} s"
         if key == "torso":
             return f"{r['torso_yaw_std_deg']:.2f} / {r['torso_pitch_std_deg']:.2f}"
         value = r.get(key)

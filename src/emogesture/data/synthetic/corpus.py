@@ -42,8 +42,9 @@ from emogesture.errors import ConfigError, EmogestureError
 #: 2: the hanging arm turns inwards at most MAX_ADDUCTION; 3: the lively generator; 4: one voice per BEAT
 #: speaker id (30 voices; two voice families only among the held-out actors; speakers 1-14 as before);
 #: 5: hands that curl and take shapes, a body that turns toward listeners, forearms toward the midline and
-#: hands together, fewer strokes with jittered apexes, holds and rests
-CORPUS_VERSION = 5
+#: hands together, fewer strokes with jittered apexes, holds and rests; 6: arms that hang nearer the body,
+#: a wider turn toward the listeners, stroke apexes a little further off their onsets
+CORPUS_VERSION = 6
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"

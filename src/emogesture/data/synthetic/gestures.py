@@ -3,7 +3,7 @@
 The motion is built from named control channels (radians, per frame) and mapped onto SMPL-X
 local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
 
-* posture = rest pose (arms hanging: shoulders ±1.25 rad about Z, elbows slightly bent) + emotion
+* posture = rest pose (arms hanging: shoulders ±``ARM_DOWN`` rad about Z, elbows slightly bent) + emotion
   posture + speaker rest offsets + per-take jitter, drifting slowly;
 * a "gesture space" lift of the hands while speaking (smoothed voice activity), back to the hanging
   rest in pauses;
@@ -46,18 +46,18 @@ from emogesture.data.synthetic import hands
 from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, TakeJitter, smooth_noise
 from emogesture.types import FPS, NUM_JOINTS
 
-ARM_DOWN = 1.22  # rad about Z that brings the T-pose arms down beside the body
+ARM_DOWN = 1.30  # rad about Z that brings the T-pose arms down beside the body (hands near the thighs)
 REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
 MAX_ADDUCTION = 0.03  # rad the hanging arm may come closer to the body than at rest
 MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
 STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
 STROKE_GAP = 0.6  # s, minimum spacing of neutral strokes
 P_REST = 0.2  # share of chosen stroke times left out: the hands rest or hold
-APEX_JITTER = 0.1  # s, sd of a stroke's apex about its onset
+APEX_JITTER = 0.13  # s, sd of a stroke's apex about its onset
 MAX_HOLD = 0.3  # s, longest hold at a stroke's apex
 P_TOGETHER = 0.12  # share of strokes that bring both hands together in front of the body
 INWARD_TALK = 0.25  # rad the forearms turn in toward the midline while talking (times the elbow's bend)
-LISTENER_YAW = 0.16  # rad: the imagined listeners sit within this turn of straight ahead
+LISTENER_YAW = 0.24  # rad: the imagined listeners sit within this turn of straight ahead
 P_TURN = 0.5  # chance that a phrase is addressed to another listener
 ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
 STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
