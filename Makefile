@@ -75,6 +75,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e '.[train,test,app]'
+	$(PY) -m pip install -q --no-deps resemblyzer==0.1.4  # its speaker encoder's weights only (experiments)
 	touch $@
 
 lint: setup

@@ -2,11 +2,10 @@
 
 The held-out takes of the synthetic corpus — those of the voices the speech model never heard when the
 cache splits by speaker (``prepare --set split_source=csv+actor``), else every take of the split — are
-played through changes that move a voice away from the training voices: pitch (and formants) ±4
-semitones with the tempo kept, tempo ±15 % with the pitch kept, white noise at 10 dB SNR, a telephone
-band, a reverberant room (RT60 0.5 s), a recording 10 dB quieter and one 6 dB louder (clipped at full scale,
-as a recorder would), and pink noise alone (no speech at all). The changes are those of
-:mod:`emogesture.audio.wave_augment`, with fixed settings. For each, over every 10-s window: how often the
+played through changes that move a voice away from the training voices
+(:func:`emogesture.audio.wave_augment.recording_changes`: pitch ±4 semitones, tempo ±15 %, white noise at
+10 dB SNR, a telephone band, a reverberant room, a recording 10 dB quieter and one 6 dB louder), and pink
+noise alone (no speech at all). For each, over every 10-s window: how often the
 perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
 the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
 share of windows that `generate --emotion auto` blends toward neutral.
@@ -21,20 +20,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from emogesture.audio import load_audio
-from emogesture.audio.wave_augment import add_noise, room_impulse, telephone, time_stretch, voice_shift
+from emogesture.audio.wave_augment import recording_changes
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
-
-
-def reverberant(wave: np.ndarray, rng: np.random.Generator, rt60: float = 0.5) -> np.ndarray:
-    """The take in a room: half direct sound, half reverberation of the same power."""
-    room = fftconvolve(wave, room_impulse(rng, rt60))[: len(wave)]
-    return 0.5 * wave + 0.5 * room * np.sqrt(np.mean(wave ** 2) / np.mean(room ** 2))
 
 
 def pink(length: int, rng: np.random.Generator) -> np.ndarray:
@@ -56,19 +48,9 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
     emotion_of = {t: int(e) for t, e in zip(test.takes, test.emotion)}
     rng = np.random.default_rng(0)
     f32 = np.float32
-    variants = {
-        f"{which}, as recorded": lambda w: w,
-        "pitch +4 semitones": lambda w: voice_shift(w, 4.0).astype(f32),
-        "pitch -4 semitones": lambda w: voice_shift(w, -4.0).astype(f32),
-        "tempo +15 %": lambda w: time_stretch(w, 1.15).astype(f32),
-        "tempo -15 %": lambda w: time_stretch(w, 1 / 1.15).astype(f32),
-        "white noise, 10 dB SNR": lambda w: add_noise(w, rng, 10.0, "white").astype(f32),
-        "telephone band 300-3400 Hz": lambda w: telephone(w).astype(f32),
-        "reverberant room, RT60 0.5 s": lambda w: reverberant(w, rng).astype(f32),
-        "recording level -10 dB": lambda w: (w * 10 ** (-10 / 20)).astype(f32),
-        "recording level +6 dB, clipped": lambda w: np.clip(w * 10 ** (6 / 20), -1.0, 1.0).astype(f32),
-        "pink noise, no speech": lambda w: pink(len(w), rng),
-    }
+    variants = {f"{which}, as recorded": lambda w: w,
+                **{name: lambda w, c=change: np.asarray(c(w), f32) for name, change in recording_changes(rng).items()},
+                "pink noise, no speech": lambda w: pink(len(w), rng)}
     rows = {}
     for name, change in variants.items():
         hits, dist, voice, low, trust, labels = [], [], [], [], [], []

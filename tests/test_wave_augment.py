@@ -110,3 +110,21 @@ def test_training_windows_heard_through_augmented_conditions(tmp_path):
     assert torch.equal(plain["fbank"], a["fbank"]) and "inputs" not in plain  # the same quadruple, clean target
     with pytest.raises(ValueError, match="augment_share"):
         SpeechQuadrupleDataset(train, [1, 2], 4, augmenter=on, augment_share=1.5)
+
+
+def test_recording_changes_do_what_they_say():
+    from emogesture.audio.wave_augment import recording_changes
+
+    t = np.arange(32000) / 16000
+    x = 0.3 * np.sin(2 * np.pi * 220 * t) * (1 + 0.5 * np.sin(2 * np.pi * 3 * t))
+    changes = recording_changes(np.random.default_rng(1))
+    out = {name: np.asarray(change(x)) for name, change in changes.items()}
+    rms = lambda y: float(np.sqrt(np.mean(y ** 2)))  # noqa: E731
+    assert all(np.all(np.isfinite(y)) for y in out.values())
+    assert rms(out["recording level -10 dB"]) == pytest.approx(rms(x) * 10 ** -0.5, rel=1e-6)
+    loud = out["recording level +6 dB, clipped"]
+    assert np.abs(loud).max() <= 1.0 and rms(loud) > 1.8 * rms(x)
+    assert len(out["tempo +15 %"]) == pytest.approx(len(x) / 1.15, rel=0.02)
+    assert len(out["tempo -15 %"]) == pytest.approx(len(x) * 1.15, rel=0.02)
+    assert rms(out["reverberant room, RT60 0.5 s"]) == pytest.approx(rms(x), rel=0.3)
+    assert 5 < 10 * np.log10(rms(x) ** 2 / rms(out["white noise, 10 dB SNR"] - x) ** 2) < 15

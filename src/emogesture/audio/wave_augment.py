@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,6 +115,32 @@ def room_impulse(rng: np.random.Generator, rt60: float, sample_rate: int = SAMPL
     return h
 
 
+def reverberant(x: np.ndarray, rng: np.random.Generator, rt60: float, wet: float) -> np.ndarray:
+    """``x`` ``[N]`` in a room of ``rt60`` s (:func:`room_impulse`): ``1 - wet`` of the direct sound plus
+    ``wet`` of its reverberation brought to the same power; ``[N]``."""
+    room = fftconvolve(x, room_impulse(rng, rt60))[: len(x)]
+    return (1 - wet) * x + wet * room * np.sqrt(np.mean(x ** 2) / (np.mean(room ** 2) + 1e-12))
+
+
+def recording_changes(rng: np.random.Generator) -> dict[str, Callable[[np.ndarray], np.ndarray]]:
+    """Fixed changes that move a recording away from the training voices and conditions, by name (the rows
+    of the robustness reports): pitch and formants ±4 semitones with the tempo kept, tempo ±15 % with the
+    pitch kept, white noise at 10 dB SNR, a telephone band, a reverberant room (RT60 0.5 s, half of it
+    reverberation), a recording 10 dB quieter and one 6 dB louder (clipped at full scale, as a recorder
+    would). Each maps a waveform ``[N]`` to one of the same rate; the noise and the room draw from ``rng``."""
+    return {
+        "pitch +4 semitones": lambda w: voice_shift(w, 4.0),
+        "pitch -4 semitones": lambda w: voice_shift(w, -4.0),
+        "tempo +15 %": lambda w: time_stretch(w, 1.15),
+        "tempo -15 %": lambda w: time_stretch(w, 1 / 1.15),
+        "white noise, 10 dB SNR": lambda w: add_noise(w, rng, 10.0, "white"),
+        "telephone band 300-3400 Hz": telephone,
+        "reverberant room, RT60 0.5 s": lambda w: reverberant(w, rng, 0.5, 0.5),
+        "recording level -10 dB": lambda w: w * 10 ** (-10 / 20),
+        "recording level +6 dB, clipped": lambda w: np.clip(w * 10 ** (6 / 20), -1.0, 1.0),
+    }
+
+
 def add_noise(x: np.ndarray, rng: np.random.Generator, snr_db: float, kind: str) -> np.ndarray:
     """``x`` plus ``kind`` noise (white, pink, speech) at ``snr_db`` below the speech's power."""
     noise = rng.standard_normal(len(x))
@@ -182,8 +209,7 @@ def augment_waveform(x: np.ndarray, rng: np.random.Generator, config: WaveAugmen
         applied.append(f"tempo x{rate:.2f}")
     if on["reverb"]:
         rt60, wet = rng.uniform(0.15, 0.9), rng.uniform(0.2, 0.8)
-        room = fftconvolve(y, room_impulse(rng, rt60))[:n]
-        y = (1 - wet) * y + wet * room * np.sqrt(np.mean(y ** 2) / (np.mean(room ** 2) + 1e-12))  # same power
+        y = reverberant(y, rng, rt60, wet)
         applied.append(f"reverb rt60 {rt60:.2f} s")
     if on["microphone"]:
         y = microphone(y, rng)
