@@ -17,7 +17,7 @@ is trusted when its Mahalanobis distance to the nearest class mean lies within t
 val windows'. The real read
 speech of :mod:`emogesture.data.real_speech` is a check, never used for a choice.
 
-Usage: python experiments/voice_encoder_perception.py CACHE OUT_DIR [--every N]
+Usage: python experiments/voice_encoder_perception.py CACHE OUT_DIR [--every N] [--augment K]
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from tqdm import tqdm
 from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
 from emogesture.audio.mel import librosa_mel_banks
 from emogesture.audio.stft import stft_power
-from emogesture.audio.wave_augment import recording_changes
+from emogesture.audio.wave_augment import augment_waveform, recording_changes
 from emogesture.audio.windows import WINDOW_SECONDS, window_starts
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
@@ -121,6 +121,9 @@ def main() -> None:
     ap.add_argument("cache", type=Path)
     ap.add_argument("out", type=Path)
     ap.add_argument("--every", type=int, default=1, help="every N-th take of each split (1: all)")
+    ap.add_argument("--augment", type=int, default=0,
+                    help="also fit on this many copies of each train window through wave_augment's random "
+                         "recording conditions (seeded; 0: clean windows only)")
     args = ap.parse_args()
     torch.manual_seed(0)
     model = load_speaker_encoder()
@@ -128,13 +131,16 @@ def main() -> None:
     root = Path(cache.manifest["root"])
     rng = np.random.default_rng(0)
 
-    def encode(takes, change=lambda w: w):
+    augment_rng = np.random.default_rng(1)
+
+    def encode(takes, change=lambda w: w, copies=0):
         xs, ys = [], []
         for take, emotion in tqdm(takes, unit="take", leave=False):
             wave = change(load_audio(root / "wave16k" / f"{take}.wav")[0].astype(np.float64))
             for w in windows(wave):
-                xs.append(embed(model, w))
-                ys.append(emotion)
+                for k in range(1 + copies):
+                    xs.append(embed(model, w if k == 0 else augment_waveform(w, augment_rng)[0].astype(np.float64)))
+                    ys.append(emotion)
         return np.array(xs), np.array(ys)
 
     train = takes_of(cache, "train", held_out_voices=False)[:: args.every]
@@ -142,7 +148,7 @@ def main() -> None:
     if not train or not val:
         raise SystemExit(f"{args.cache}: needs train takes of train speakers and val takes of voices never trained on "
                          "(prepare --set split_source=csv+actor)")
-    x_train, y_train = encode(train)
+    x_train, y_train = encode(train, copies=args.augment)
     lda = LinearDiscriminantAnalysis(solver="lsqr", shrinkage="auto").fit(x_train, y_train)
     precision = np.linalg.inv(lda.covariance_)
 
@@ -168,14 +174,17 @@ def main() -> None:
                           "distance_over_threshold": np.round(distance(x) / threshold, 2).tolist()}
     heard_all = [h for r in real.values() for h in r["heard"]]
     trusted_all = [t for r in real.values() for t in r["trusted"]]
-    result = {"train_windows": len(y_train), "val_takes": len(val), "trust_threshold": threshold, "rows": rows,
+    result = {"train_windows": len(y_train), "augmented_copies": args.augment, "val_takes": len(val),
+              "trust_threshold": threshold, "rows": rows,
               "real": real, "real_heard_as_neutral": float(np.mean([h == "neutral" for h in heard_all])),
               "real_trusted": float(np.mean(trusted_all))}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "voice_encoder_perception.json").write_text(json.dumps(result, indent=1) + "\n")
+    augmented = f"; each window also through {args.augment} random recording conditions" if args.augment else ""
     lines = ["# Emotion read from a speaker encoder trained on real speech (val, voices never trained on)", "",
              f"Linear discriminant analysis on the embeddings of {len(y_train)} train windows (train texts, train "
-             f"speakers); val: {len(val)} takes of the val texts spoken by the val speakers. Trusted: the distance to "
+             f"speakers{augmented}); val: {len(val)} takes of the val texts spoken by the val speakers. "
+             "Trusted: the distance to "
              "the nearest emotion mean within the 0.99 quantile of the as-recorded val windows'.", "",
              "| audio | windows | perceived emotion correct | trusted | most perceived |", "|---|---|---|---|---|"]
     for name, r in rows.items():

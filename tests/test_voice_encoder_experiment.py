@@ -15,7 +15,8 @@ EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 
 def _module():
-    spec = importlib.util.spec_from_file_location("voice_encoder_perception", EXPERIMENTS / "voice_encoder_perception.py")
+    path = EXPERIMENTS / "voice_encoder_perception.py"
+    spec = importlib.util.spec_from_file_location("voice_encoder_perception", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
