@@ -70,7 +70,7 @@ $(GLTF_VALIDATOR):
 	npm install --prefix build/node --no-audit --no-fund --silent gltf-validator@2.0.0-dev.3.10 three@0.170.0
 
 # The CPU build of torch first (pinned), so the package's torch range adds nothing.
-$(VENV)/.installed: pyproject.toml
+$(VENV)/.installed: pyproject.toml Makefile  # a changed install recipe installs again
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
