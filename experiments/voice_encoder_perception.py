@@ -125,19 +125,19 @@ def main() -> None:
                     help="also fit on this many copies of each train window through wave_augment's random "
                          "recording conditions (seeded; 0: clean windows only)")
     args = ap.parse_args()
-    torch.manual_seed(0)
     model = load_speaker_encoder()
     cache = open_cache(args.cache)
     root = Path(cache.manifest["root"])
-    rng = np.random.default_rng(0)
+    rng, augment_rng = np.random.default_rng(0), np.random.default_rng(1)
 
-    augment_rng = np.random.default_rng(1)
+    def load(takes: list[tuple[str, int]]) -> list[tuple[np.ndarray, int]]:
+        """(waveform float32, emotion) of each take, read once for every change below."""
+        return [(load_audio(root / "wave16k" / f"{take}.wav")[0], emotion) for take, emotion in takes]
 
-    def encode(takes, change=lambda w: w, copies=0):
+    def encode(recordings, change=lambda w: w, copies=0):
         xs, ys = [], []
-        for take, emotion in tqdm(takes, unit="take", leave=False):
-            wave = change(load_audio(root / "wave16k" / f"{take}.wav")[0].astype(np.float64))
-            for w in windows(wave):
+        for wave, emotion in tqdm(recordings, unit="take", leave=False):
+            for w in windows(change(wave.astype(np.float64))):
                 for k in range(1 + copies):
                     xs.append(embed(model, w if k == 0 else augment_waveform(w, augment_rng)[0].astype(np.float64)))
                     ys.append(emotion)
@@ -148,7 +148,7 @@ def main() -> None:
     if not train or not val:
         raise SystemExit(f"{args.cache}: needs train takes of train speakers and val takes of voices never trained on "
                          "(prepare --set split_source=csv+actor)")
-    x_train, y_train = encode(train, copies=args.augment)
+    x_train, y_train = encode(load(train), copies=args.augment)
     lda = LinearDiscriminantAnalysis(solver="lsqr", shrinkage="auto").fit(x_train, y_train)
     precision = np.linalg.inv(lda.covariance_)
 
@@ -156,9 +156,9 @@ def main() -> None:
         d = x[:, None, :] - lda.means_[None]
         return np.sqrt(np.einsum("wkd,de,wke->wk", d, precision, d).min(1))
 
-    rows, threshold = {}, None
+    rows, threshold, val_waves = {}, None, load(val)
     for name, change in {"as recorded": lambda w: w, **recording_changes(rng)}.items():
-        x, y = encode(val, lambda w, c=change: np.asarray(c(w), np.float64))
+        x, y = encode(val_waves, lambda w, c=change: np.asarray(c(w), np.float64))
         heard = lda.predict(x)
         dist = distance(x)
         if threshold is None:  # the trust threshold: the as-recorded val windows' quantile
@@ -169,9 +169,9 @@ def main() -> None:
     real = {}
     for rec in RECORDINGS:
         x = np.array([embed(model, w) for w in windows(load_real_recording(rec).astype(np.float64))])
-        heard = [EMOTIONS[k] for k in lda.predict(x)]
-        real[rec.name] = {"windows": len(x), "heard": heard, "trusted": (distance(x) <= threshold).tolist(),
-                          "distance_over_threshold": np.round(distance(x) / threshold, 2).tolist()}
+        heard, dist = [EMOTIONS[k] for k in lda.predict(x)], distance(x)
+        real[rec.name] = {"windows": len(x), "heard": heard, "trusted": (dist <= threshold).tolist(),
+                          "distance_over_threshold": np.round(dist / threshold, 2).tolist()}
     heard_all = [h for r in real.values() for h in r["heard"]]
     trusted_all = [t for r in real.values() for t in r["trusted"]]
     result = {"train_windows": len(y_train), "augmented_copies": args.augment, "val_takes": len(val),
