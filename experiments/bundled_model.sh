@@ -8,7 +8,9 @@
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside it;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
-#   4. the speech model's emotion perception (class means on train, trust threshold on val);
+#   4. the speech model's emotion perception (class means on train, trust threshold on val), and the
+#      gesture model's fallback style for unfamiliar voices (the training speaker whose style gives its
+#      typical motion on the val split's neutral windows);
 #   5. the bundle: weights in float16, config and statistics in JSON, SHA256SUMS; the gesture model with
 #      the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for this recipe:
 #      reports/bundled_model/generation_sweep_val.md), however old its run;
@@ -50,11 +52,14 @@ for pid in "${pids[@]}"; do wait "$pid"; done
 grep -qs '"step": 2400' "$RUN/gesture/model.json" || timed gesture $EG train gesture --data "$CACHE" --speech "$RUN/speech" \
     --out "$RUN/gesture" --steps 2400 --checkpoint-every 200 --quiet
 
-# 4. emotion perception (train means, val threshold) on a copy of the speech model; 5. the bundle
+# 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style (val)
+# on a copy of the gesture model; 5. the bundle
 [ -f "$RUN/speech_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/speech" --data "$CACHE" \
     --out "$RUN/speech_calibrated"
+[ -f "$RUN/gesture_styled/model.json" ] || $EG calibrate style --model "$RUN/gesture" --data "$CACHE" \
+    --out "$RUN/gesture_styled"
 BUNDLE=$RUN/bundle
-$EG bundle --speech "$RUN/speech_calibrated" --gesture "$RUN/gesture" --extractor "$RUN/extractor" --out "$BUNDLE" \
+$EG bundle --speech "$RUN/speech_calibrated" --gesture "$RUN/gesture_styled" --extractor "$RUN/extractor" --out "$BUNDLE" \
     --overwrite "${GENERATION[@]}"
 
 # 6. the bundle, as shipped (float16), scored once on the test texts; the card; into the package

@@ -115,6 +115,34 @@ def level_paragraph(rows: dict) -> str:
             "a quiet or a loud microphone moves the perceived emotion, so set the emotion yourself when in doubt.\n")
 
 
+def fallback_sentence(record: dict | None) -> str:
+    """What the card says of the gesture model's fallback style (``emogesture calibrate style``)."""
+    if not record:
+        return "The fallback is the training voice nearest the centre of the training voices."
+    chosen, ref = record["candidates"][str(record["speaker"])], record["reference"]
+    shares = sorted(c["in_front"] for c in record["candidates"].values())
+    return (f"The fallback is training speaker {record['speaker']}, whose style gives the model's typical motion: "
+            f"on {record['windows']} neutral {record['split']} windows with the neutral emotion and each training "
+            f"speaker's style in turn, a hand is in front of the chest in {shares[0]:.0%} to {shares[-1]:.0%} of "
+            f"the frames, {chosen['in_front']:.0%} with this one, {ref['in_front']:.0%} with the windows' own.")
+
+
+def fallback_table(record: dict) -> str:
+    """The fallback-style choice as a markdown report: every candidate speaker against the reference."""
+    ref = record["reference"]
+    rows = "\n".join(f"| {k}{' (chosen)' if int(k) == record['speaker'] else ''} | {c['in_front']:.1%} | "
+                     f"{c['wrist_distance']:.3f} | {c['cost']:.2f} |"
+                     for k, c in sorted(record["candidates"].items(), key=lambda kv: kv[1]["cost"]))
+    return (f"# The fallback style for unfamiliar voices (split {record['split']})\n\n"
+            f"{record['windows']} neutral windows of the {record['split']} split (held-out voices), seed "
+            f"{record['seed']}: generated with their own latents (the reference), then with the neutral mean "
+            "emotion latent and each training speaker's mean style latent (`emogesture calibrate style`). "
+            "Cost: the distance from the reference in units of the real-speech check's tolerances (0.10 in "
+            "the share, 10 % in the distance).\n\n"
+            f"| style | a hand in front of the chest | wrists' median distance (m) | cost |\n|---|---|---|---|\n"
+            f"| the windows' own (reference) | {ref['in_front']:.1%} | {ref['wrist_distance']:.3f} | - |\n{rows}\n")
+
+
 def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     bundle, report = Path(bundle), Path(report)
     real = json.loads((report / "real" / "real_speech.json").read_text())
@@ -122,6 +150,10 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     gesture = json.loads((report / "gesture" / "gesture_models_test.json").read_text())
     shift = json.loads((report / "perception_shift.json").read_text())
     perception = json.loads((bundle / "speech.json").read_text())["extra"]["emotion_perception"]
+    fallback = json.loads((bundle / "gesture.json").read_text())["extra"].get("fallback_style")
+    fallback_text = fallback_sentence(fallback)
+    if fallback:
+        write_text_atomic(report / f"fallback_style_{fallback['split']}.md", fallback_table(fallback))
     rows = gesture["table"]["rows"]
     gt, ours, edit, auto = rows["GT"], rows["ours"], rows["ours, emotion edit"], rows.get("ours, emotion auto")
     metrics = {
@@ -230,8 +262,8 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   nearest mean, against a threshold set at the {perception['info']['quantile']:g} quantile of the
   distances of held-out val windows. Beyond a threshold the window's emotion is blended toward the
   neutral mean, fully at twice the threshold, and a voice unlike every training voice has its gesture
-  style blended toward the most typical training style, so that the motion stays like the motion the
-  model learned; the message says so. `--emotion own` keeps the raw
+  style blended toward a fallback style, so that the motion stays like the motion the model learned;
+  the message says so. {fallback_text} `--emotion own` keeps the raw
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;

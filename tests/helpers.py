@@ -117,3 +117,15 @@ def canvas_pixels(driver, selector: str) -> np.ndarray:
 
     data = driver.execute_script(f"return document.querySelector({selector!r}).toDataURL('image/png');")
     return np.asarray(Image.open(io.BytesIO(base64.b64decode(data.split(",", 1)[1]))).convert("RGB"), np.int16)
+
+
+def experiment_module(name: str):
+    """The script ``experiments/<name>.py`` imported as a module (experiments are scripts, not a package)."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module

@@ -103,5 +103,5 @@ def test_output_names_and_video_label(tmp_path, kwargs, tag, emotion):
     assert request.tag == tag
     assert request.stems() == [tmp_path / f"talk{tag}_seed7_{k}" for k in (0, 1)]
     assert request.perception_path == tmp_path / f"talk{tag}_seed7_perception.json"
-    style = "style from calm.wav" if "style_from" in kwargs else "style: own"
+    style = "style from calm.wav" if "style_from" in kwargs else f"style: own ({request.mode})"
     assert request.video_label(1) == f"talk.flac\n{emotion}  |  {style}\nseed 7, sample 1"

@@ -280,3 +280,37 @@ def test_the_papers_design_trains_and_generates_through_the_pipeline(trained):
     a, b = (pipe.generate(wave, seed=s, seam_candidates=2, generation=fast)[0] for s in (0, 1))
     assert len(a.poses) == int(round(len(wave) / 16000 * 30)) and np.isfinite(a.poses).all()
     assert not np.allclose(a.poses, b.poses)  # the seed draws the motion
+
+
+def test_calibrate_style_chooses_the_speaker_with_typical_motion(trained, tmp_path):
+    from emogesture.checkpoints import calibration_splits
+    from emogesture.pipeline.perception import fallback_style_of
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+    from emogesture.train.fallback_style import speaker_style_means, typicality_cost
+
+    out = subprocess.run(cli("calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
+                             "--out", tmp_path / "styled", "--windows", 3), capture_output=True, text=True)
+    assert out.returncode == 0 and "fallback style: training speaker" in out.stdout, out.stderr[-2000:]
+    styled = load_model(tmp_path / "styled", "gesture")
+    record = styled.metadata.fallback_style
+    assert record["split"] == "val" and 1 <= record["windows"] <= 3 and set(record["candidates"]) == {"1", "2"}
+    costs = {int(k): c["cost"] for k, c in record["candidates"].items()}
+    assert record["speaker"] == min(costs, key=costs.get)
+    for c in record["candidates"].values():  # each cost is the candidate's distance from the reference
+        assert c["cost"] == pytest.approx(typicality_cost(c, record["reference"]))
+    means = speaker_style_means(SpeechLatentEncoder.of_gesture_model(styled), open_cache(trained / "cache"))
+    np.testing.assert_allclose(fallback_style_of(styled), means[record["speaker"]], atol=1e-6)
+    assert calibration_splits(styled)["fallback_style"] == "val"  # val is no longer held out for this model
+    assert fallback_style_of(load_model(trained / "timing", "gesture")) is None
+    again = subprocess.run(cli("calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
+                               "--out", tmp_path / "styled"), capture_output=True, text=True)
+    assert again.returncode != 0 and "--overwrite" in again.stderr
+
+
+def test_typicality_cost_is_in_units_of_the_real_speech_tolerances():
+    from emogesture.train.fallback_style import typicality_cost
+
+    ref = {"in_front": 0.4, "wrist_distance": 0.5}
+    assert typicality_cost(ref, ref) == 0.0
+    assert typicality_cost({"in_front": 0.5, "wrist_distance": 0.5}, ref) == pytest.approx(1.0)
+    assert typicality_cost({"in_front": 0.4, "wrist_distance": 0.55}, ref) == pytest.approx(1.0)

@@ -75,6 +75,18 @@ def test_auto_moves_an_unfamiliar_voice_to_the_typical_training_style():
     assert auto_style(outside, None) is outside
 
 
+def test_auto_moves_an_unfamiliar_voice_to_the_gesture_models_fallback_style():
+    p, train, _ = fitted()
+    fallback = p.voice.means[(p.typical_speaker() + 1) % len(p.voice.means)].astype(np.float32)
+    inside = train[:5].astype(np.float32)
+    assert np.allclose(auto_style(inside, p, fallback), inside, atol=1e-5)  # a familiar voice keeps its style
+    moved = auto_style(inside + 50.0, p, fallback)
+    assert np.allclose(moved, np.broadcast_to(fallback, moved.shape), atol=1e-4)
+    assert not np.allclose(moved, np.broadcast_to(p.typical_style(), moved.shape), atol=1e-2)
+    with pytest.raises(EmogestureError, match="fallback style has shape"):
+        auto_style(inside + 50.0, p, fallback[:10])
+
+
 def test_round_trip_and_refusals():
     p, train, held = fitted(10)
     q = EmotionPerception.from_dict(p.to_dict())

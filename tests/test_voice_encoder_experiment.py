@@ -2,8 +2,6 @@
 project's own mel front end. Its embeddings are unit length and non-negative, do not move with the recording's
 level, and tell two real voices apart better than two halves of one voice."""
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,16 +9,11 @@ import numpy as np
 from emogesture.audio import load_audio
 from emogesture.data.real_speech import RECORDINGS, load_real_recording
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+from helpers import experiment_module
 
 
 def _module():
-    path = EXPERIMENTS / "voice_encoder_perception.py"
-    spec = importlib.util.spec_from_file_location("voice_encoder_perception", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    return experiment_module("voice_encoder_perception")
 
 
 def test_speaker_encoder_embeds_voices_not_levels():

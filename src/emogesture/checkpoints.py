@@ -388,7 +388,7 @@ def calibration_splits(loaded: LoadedModel) -> dict[str, str]:
     """Calibrations stored in a model file and the split each was measured on (its windows are not
     held out for numbers of this model): e.g. ``{"residual_calibration": "val"}``."""
     found = {}
-    for key in ("residual_calibration", "emotion_perception"):
+    for key in ("residual_calibration", "emotion_perception", "fallback_style"):
         blob = getattr(loaded.metadata, key, None)
         if isinstance(blob, dict):
             split = blob.get("split", (blob.get("info") or {}).get("split"))

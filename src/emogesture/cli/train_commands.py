@@ -51,26 +51,28 @@ def register(sub: argparse._SubParsersAction) -> None:
     _engine_args(p)
     p.set_defaults(func=run_train_gesture)
 
-    cal = sub.add_parser("calibrate", help="measure a model's residual-noise calibration on held-out windows")
+    cal = sub.add_parser("calibrate", help="measure a model's calibrations on held-out windows")
     csub = cal.add_subparsers(dest="model", required=True, metavar="MODEL")
-    p = csub.add_parser("gesture", help="the gesture generator (written as a new model folder)")
-    p.add_argument("--model", required=True, type=Path, help="run folder of `emogesture train gesture`")
-    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
-    p.add_argument("--out", required=True, type=Path, help="folder for the calibrated copy of the model")
-    p.add_argument("--split", default="val", help="held-out cache split to measure on (default val)")
+    p = _calibrate_parser(csub, "gesture", "the gesture generator's residual noise (written as a new model folder)",
+                          "run folder of `emogesture train gesture`", "the calibrated copy of the model",
+                          "held-out cache split to measure on (default val)")
     p.add_argument("--seed", type=int, default=0, help="seed of the samples measured (default 0)")
     p.add_argument("--scale", type=float, default=1.0, help="residual noise scale stored with the model (default 1)")
-    p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
     p.set_defaults(func=run_calibrate_gesture)
-    p = csub.add_parser("speech", help="the speech model's emotion perception (for generate --emotion auto)")
-    p.add_argument("--model", required=True, type=Path, help="run folder of `emogesture train speech`")
-    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
-    p.add_argument("--out", required=True, type=Path, help="folder for the calibrated copy of the model")
-    p.add_argument("--split", default="val", help="held-out split for the trust threshold (default val)")
+    p = _calibrate_parser(csub, "speech", "the speech model's emotion perception (for generate --emotion auto)",
+                          "run folder of `emogesture train speech`", "the calibrated copy of the model",
+                          "held-out split for the trust threshold (default val)")
     p.add_argument("--quantile", type=float, default=0.99,
                    help="quantile of the held-out distances used as the trust threshold (default 0.99)")
-    p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
     p.set_defaults(func=run_calibrate_speech)
+    p = _calibrate_parser(csub, "style", "the gesture model's fallback style for unfamiliar voices (--emotion auto)",
+                          "gesture model (run folder or .json)", "the copy of the model with its fallback style",
+                          "held-out cache split to choose on (default val)",
+                          description="Choose, on held-out windows, the training speaker whose style gives the "
+                          "gesture model's typical motion; unfamiliar voices are blended toward it under --emotion auto.")
+    p.add_argument("--seed", type=int, default=0, help="seed of the samples compared (default 0)")
+    p.add_argument("--windows", type=int, default=96, help="held-out windows generated per speaker (default 96)")
+    p.set_defaults(func=run_calibrate_style)
 
     p = sub.add_parser("bundle", help="put a speech, gesture and extractor model into one folder (float16)",
                        description="Copy the models into OUT as speech.*, gesture.*, extractor.* with float16 "
@@ -117,6 +119,18 @@ def run_train_extractor(args: argparse.Namespace) -> int:
                                                                options=_options(args)))
 
 
+def _calibrate_parser(sub, name: str, help_text: str, model_help: str, out_what: str, split_help: str,
+                      description: str | None = None) -> argparse.ArgumentParser:
+    """A ``calibrate`` subcommand with the arguments every calibration takes."""
+    p = sub.add_parser(name, help=help_text, description=description)
+    p.add_argument("--model", required=True, type=Path, help=model_help)
+    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
+    p.add_argument("--out", required=True, type=Path, help=f"folder for {out_what}")
+    p.add_argument("--split", default="val", help=split_help)
+    p.add_argument("--overwrite", action="store_true", help="replace a model already in --out")
+    return p
+
+
 def run_train_gesture(args: argparse.Namespace) -> int:
     from emogesture.train.runs import train_gesture
 
@@ -142,6 +156,17 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
           f"{p.info['held_out_windows']} {args.split} windows): {args.out / 'model.json'}")
+    return 0
+
+
+def run_calibrate_style(args: argparse.Namespace) -> int:
+    from emogesture.train.fallback_style import calibrate_fallback_run
+
+    r = calibrate_fallback_run(args.model, args.data, args.out, args.split, args.seed, args.overwrite, args.windows)
+    chosen, ref = r["candidates"][str(r["speaker"])], r["reference"]
+    print(f"fallback style: training speaker {r['speaker']} (on {r['windows']} {args.split} windows: a hand in front "
+          f"{chosen['in_front']:.0%} against {ref['in_front']:.0%} with the windows' own styles, wrists "
+          f"{chosen['wrist_distance']:.2f} m against {ref['wrist_distance']:.2f} m): {args.out / 'model.json'}")
     return 0
 
 

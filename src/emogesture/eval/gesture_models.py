@@ -41,7 +41,7 @@ from emogesture.pipeline.conditions import (
     window_seeds,
 )
 from emogesture.pipeline.generate import GesturePipeline
-from emogesture.pipeline.perception import auto_emotion, auto_style, perception_of
+from emogesture.pipeline.perception import auto_emotion, auto_style, fallback_style_of, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 
@@ -211,12 +211,12 @@ def evaluate_gesture_models(cache_dir: Path, extractor_run: Path, models: dict[s
         sources[name] = generate_from_conditions(gesture, conds, seeds)
         perception = perception_of(speech) if name == main and speech is not None else None
         if perception is not None:  # `generate --emotion auto`: untrusted emotion latents blended toward neutral,
-            # an unfamiliar voice's style toward the typical training style
+            # an unfamiliar voice's style toward the model's fallback style
             trust = perception.trust(conds[1], conds[2])
             auto_trust[f"{name}, emotion auto"] = {"windows": int(len(trust)), "trusted": int((trust >= 1).sum()),
                                                    "mean_trust": float(trust.mean())}
             sources[f"{name}, emotion auto"] = generate_from_conditions(
-                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), auto_style(conds[2], perception),
+                gesture, [conds[0], auto_emotion(conds[1], conds[2], perception), auto_style(conds[2], perception, fallback_style_of(gesture)),
                           *conds[3:]], seeds)
         if gesture.config.hears_timing:  # the control: the stream of another window, all else its own
             other = other_window_pairs(windows.text, seed, 1)[0]

@@ -72,7 +72,8 @@ class SpeechMetadata(ModelMetadata):
 @dataclass
 class GestureMetadata(ModelMetadata):
     """A gesture model's: motion normalisation and features, the speech model it trained on (path and
-    weights' checksum), the mean emotion latent of each emotion and the residual-noise calibration."""
+    weights' checksum), the mean emotion latent of each emotion, the residual-noise calibration and the
+    style an unfamiliar voice takes (``fallback_style``, :mod:`emogesture.train.fallback_style`)."""
 
     kind: ClassVar[str] = "gesture"
     motion_mean: list[float] | None = None
@@ -84,6 +85,7 @@ class GestureMetadata(ModelMetadata):
     speech_weights_sha256: str | None = None
     emotion_latent_means: dict[str, list[float]] | None = None
     residual_calibration: dict[str, Any] | None = None
+    fallback_style: dict[str, Any] | None = None
 
 
 @dataclass

@@ -156,7 +156,7 @@ class AnimationRequest:
     def video_label(self, sample: int) -> str | list[tuple[float, str]]:
         """The three lines shown in a video: the speech's name, where emotion and style come from, seed and
         sample; with a timeline, ``(from seconds, lines)`` for each keyframe, naming the emotion in force."""
-        style = f"style from {self.style_from.name}" if self.style_from else "style: own"
+        style = f"style from {self.style_from.name}" if self.style_from else f"style: own ({self.mode})"
         if self.timeline is not None:
             return [(t, f"{self.speech.name}\nemotion: {name} (from {t:g} s)  |  {style}\nseed {self.seed}, "
                         f"sample {sample}") for t, name in self.timeline.video_labels()]

@@ -34,7 +34,8 @@ from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, settle_quiet_windows, stitch)
-from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, auto_style, perceive, perception_of
+from emogesture.pipeline.perception import (PerceivedEmotion, auto_emotion, auto_style, fallback_style_of, perceive,
+                                            perception_of)
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.pipeline.timeline import EmotionTimeline, timeline_latents
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
@@ -149,7 +150,7 @@ class GesturePipeline:
                    starts_s: list[float] | None = None, duration_s: float | None = None) -> list[np.ndarray]:
         """Condition latents ``[c, e, s]`` ``[W, 256]`` of encoded windows: ``emotion_mode`` ``auto``
         blends untrusted emotion latents toward neutral and the style latents of an unfamiliar voice toward
-        the typical training style (:mod:`emogesture.pipeline.perception`), ``own`` keeps them; then the
+        the model's fallback style (:mod:`emogesture.pipeline.perception`), ``own`` keeps them; then the
         edit, if any. A model that hears timing also gets the windows' own timing
         stream ``[W, 300, 2]`` (never the edit source's). An emotion timeline needs the windows' start
         seconds ``starts_s`` and the recording's ``duration_s``."""
@@ -158,7 +159,7 @@ class GesturePipeline:
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
         perception = perception_of(self.speech)
         if emotion_mode == "auto":
-            e, s = auto_emotion(e, s, perception), auto_style(s, perception)
+            e, s = auto_emotion(e, s, perception), auto_style(s, perception, fallback_style_of(self.loaded))
         if edit is not None:
             n = len(c)
             target = None

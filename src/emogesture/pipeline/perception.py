@@ -23,14 +23,16 @@ the two, each 1 up to its threshold and falling linearly to 0 at twice the thres
 emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
 
 The voice's own gesture style is kept in range the same way under ``auto``: a window's style latent is
-blended toward the *typical training style* — the training speaker whose mean style latent lies nearest
-the centre of all training speakers' means (:meth:`EmotionPerception.typical_speaker`) — by ``1 − voice
-trust``. A style latent far from every training voice is an extrapolation for the gesture model: with the
-bundled model of corpus version 3, real read speech (Debian's pocketsphinx-testdata) kept its arms
-hanging, a hand in front of the chest in 28 % of the frames against 45 % for the held-out corpus takes;
-blended toward the typical style, 45 %. The nearest training speaker is not used: the voice that a real
-recording happens to sound most like is no evidence of its gestures, and the training speakers' styles
-differ widely (a hand in front in 11–74 % of the frames on the same recording).
+blended by ``1 − voice trust`` toward a *fallback style*, one training speaker's mean style latent. A
+style latent far from every training voice is an extrapolation for the gesture model: with the bundled
+model of corpus version 3, real read speech (Debian's pocketsphinx-testdata) kept its arms hanging. Which
+speaker matters as much, since the training speakers' gesture styles differ widely (a hand in front of
+the chest in 5–81 % of the frames on the same recording). A gesture model that stores one
+(``metadata.fallback_style``) names the speaker whose gestures are its typical ones, chosen on held-out
+windows by motion (:mod:`emogesture.train.fallback_style`); otherwise the speech model's *typical
+training style* stands in: the training speaker whose mean style latent lies nearest the centre of all
+the speakers' means (:meth:`EmotionPerception.typical_speaker`). The nearest training speaker is not
+used: the voice that a real recording happens to sound most like is no evidence of its gestures.
 """
 
 from __future__ import annotations
@@ -42,7 +44,8 @@ from os import PathLike
 
 import numpy as np
 
-from emogesture.checkpoints import check_model_output, load_model, refuse_trained_split, save_model, trained_splits
+from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
+                                    trained_splits)
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.diffusion.residual import shrunk_covariance
@@ -198,7 +201,7 @@ class PerceivedEmotion:
         if mode == "auto" and low:
             far_voice = int((self.distance[:, 1] > 1.0).sum())
             style = (f", and in {far_voice} the voice is unlike every training voice, so its gesture style is blended "
-                     "toward the typical training style") if far_voice else ""
+                     "toward the gesture model's fallback style") if far_voice else ""
             return (text + f"; in {low} of {n} windows the voice or its emotion is unlike the training speech "
                     f"(beyond the calibrated range), so their emotion is blended toward neutral{style} "
                     "(--emotion own keeps both)")
@@ -247,13 +250,24 @@ def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerc
     return (w * emotion + (1.0 - w) * perception.neutral()[None]).astype(np.float32)
 
 
-def auto_style(style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
-    """Style latents ``[W, D]`` blended toward the typical training style by ``1 − voice trust``
-    (``--emotion auto``; module docstring); unchanged when the model has no perception calibration."""
+def auto_style(style: np.ndarray, perception: EmotionPerception | None,
+               fallback: np.ndarray | None = None) -> np.ndarray:
+    """Style latents ``[W, D]`` blended toward ``fallback`` ``[D]`` (None: the speech model's typical training
+    style) by ``1 − voice trust`` (``--emotion auto``; module docstring); unchanged when the model has no
+    perception calibration."""
     if perception is None:
         return style
+    target = perception.typical_style() if fallback is None else np.asarray(fallback, np.float32)
+    if target.shape != style.shape[1:]:
+        raise EmogestureError(f"fallback style has shape {target.shape}; the style latents are {style.shape[1:]}")
     w = perception.voice.trust(style)[:, None]
-    return (w * style + (1.0 - w) * perception.typical_style()[None]).astype(np.float32)
+    return (w * style + (1.0 - w) * target[None]).astype(np.float32)
+
+
+def fallback_style_of(gesture: LoadedModel) -> np.ndarray | None:
+    """The style latent ``[D]`` a gesture model's unfamiliar voices fall back on, or None when it stores none."""
+    record = getattr(gesture.metadata, "fallback_style", None)
+    return None if not record else np.asarray(record["latent"], np.float32)
 
 
 def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike[str], out: str | PathLike[str],
