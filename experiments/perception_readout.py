@@ -70,8 +70,8 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
     cache = open_cache(cache_dir)
     held = cache.split(split)
     root = Path(cache.manifest["root"])
-    takes = [t for t in dict.fromkeys(held.takes)
-             if int(held.speaker_id[held.takes.index(t)]) not in encoder.speakers]
+    unheard = {t for t, s in zip(held.takes, held.speaker_id.tolist()) if s not in encoder.speakers}
+    takes = [t for t in dict.fromkeys(held.takes) if t in unheard]
     if not takes:
         raise SystemExit(f"{cache_dir}: the {split} split has no voice the speech model did not train on")
     emotion_of = {t: int(e) for t, e in zip(held.takes, held.emotion)}

@@ -57,16 +57,11 @@ def motion_typicality(gesture: LoadedModel, features: np.ndarray) -> dict[str, f
     """Generated raw motion features ``[W, T, D]`` -> the share of frames with a hand in front of the chest
     and the wrists' median distance (m), on the licence-free skeleton."""
     spec = from_dict(MotionFeatureSpec, gesture.metadata.require("features", gesture.path))
-    body = SkeletonBody()
-    front, distance = [], []
     with torch.no_grad():
-        for window in features:
-            joints = body.forward_features(torch.from_numpy(np.ascontiguousarray(window[None], np.float32)),
-                                           spec)[0].numpy()
-            front.append(hands_in_front(joints).reshape(-1))
-            distance.append(wrist_distance(joints))
-    return {"in_front": float(np.concatenate(front).mean()),
-            "wrist_distance": float(np.median(np.concatenate(distance)))}
+        joints = SkeletonBody().forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), spec)
+    joints = joints.reshape(-1, *joints.shape[-2:]).numpy()  # every window's frames in a row: both are per frame
+    return {"in_front": float(hands_in_front(joints).mean()),
+            "wrist_distance": float(np.median(wrist_distance(joints)))}
 
 
 def typicality_cost(stats: dict[str, float], reference: dict[str, float]) -> float:
