@@ -209,3 +209,37 @@ def test_init_from_deit_weights_starts_every_encoder_there(cache, tmp_path):
                              "--init-from", missing), capture_output=True, text=True)
     assert out.returncode != 0 and "Traceback" not in out.stderr
     assert f"{missing}: pretrained weights file not found" in out.stderr.strip().splitlines()[-1]
+
+
+def test_init_from_a_trained_speech_model_starts_every_weight_there(tmp_path):
+    import torch
+
+    from emogesture.checkpoints import save_model
+    from emogesture.config import to_dict
+    from emogesture.errors import ConfigError
+    from emogesture.models.metadata import SpeechMetadata
+    from emogesture.train.speech import SpeechModule, SpeechTrainConfig
+
+    config = SpeechTrainConfig.preset("tiny", "adversarial")
+    config.model.num_speakers = 3
+    trained = SpeechModule(to_dict(config), seed=1).model
+    with torch.no_grad():
+        for p in trained.parameters():
+            p.add_(0.01)
+    save_model(tmp_path / "stage1", "speech", trained, config.model,
+               SpeechMetadata(emotions=["neutral"], speakers=[1, 2, 3], fbank_mean=0.0, fbank_std=1.0,
+                              prepare_config={}, train_splits=["train"], step=5))
+    config.init_from = str(tmp_path / "stage1")
+    module = SpeechModule(to_dict(config), seed=2)
+    random_start = SpeechModule(to_dict(SpeechTrainConfig.preset("tiny", "adversarial")), seed=2).model
+    for (name, value), start in zip(module.model.state_dict().items(), trained.state_dict().values()):
+        assert torch.equal(value, start), name
+    assert not torch.equal(random_start.decoder.state_dict()[next(iter(random_start.decoder.state_dict()))],
+                           trained.decoder.state_dict()[next(iter(trained.decoder.state_dict()))])
+    # the exported average starts there too
+    assert torch.equal(module.averaged.fusion.state_dict()[next(iter(module.averaged.fusion.state_dict()))],
+                       trained.fusion.state_dict()[next(iter(trained.fusion.state_dict()))])
+
+    config.model.latent_dim = 128
+    with pytest.raises(ConfigError, match="another architecture.*latent_dim"):
+        SpeechModule(to_dict(config))

@@ -36,7 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="loss terms: full (the paper), emotion_only / style_only (its ablations), adversarial (full + latent adversaries)")
     p.add_argument("--init-from", type=Path, metavar="WEIGHTS",
                    help="start the three audio encoders from DeiT weights you have (timm layout, .safetensors or "
-                        ".pth, e.g. deit_base_distilled_patch16_384; with --preset paper), as the paper does")
+                        ".pth, e.g. deit_base_distilled_patch16_384; with --preset paper), as the paper does; "
+                        "or start the whole model from a trained speech model (its run folder) of the same "
+                        "architecture, to train it on with other settings")
     _engine_args(p)
     p.set_defaults(func=run_train_speech)
     p = tsub.add_parser("extractor", help="the motion feature extractor M used by the gesture metrics")

@@ -63,7 +63,7 @@ def train_speech(data: str | PathLike[str], out: str | PathLike[str], *, preset:
                  options: RunOptions | None = None) -> TrainedRun:
     """The speech disentanglement model (content / emotion / style); ``losses``: ``full`` (the paper),
     ``emotion_only`` / ``style_only`` (its ablations) or ``adversarial``; ``init_from``: DeiT weights for the
-    three audio encoders."""
+    three audio encoders, or a trained speech model of the same architecture to start from."""
     from emogesture.train.speech import SpeechTrainConfig, build
 
     config = load_config(SpeechTrainConfig, config_file, list(overrides),

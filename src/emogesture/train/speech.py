@@ -12,7 +12,7 @@ from torch.utils.data import DataLoader
 
 from emogesture.audio import augment_fbank, scramble_segments
 from emogesture.audio.wave_augment import WaveAugmentConfig
-from emogesture.checkpoints import save_model
+from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
@@ -61,9 +61,11 @@ class SpeechTrainConfig:
     #: Cache splits the model learns from. ``["train", "val"]`` adds the validation texts (never the test
     #: texts): with few texts per emotion, more texts is what helps emotion recognition generalise.
     train_splits: list[str] = field(default_factory=lambda: ["train"])
-    #: DeiT weights (timm's layout, ``.safetensors`` or ``.pth``, e.g. deit_base_distilled_patch16_384) that
-    #: the three audio encoders start from (``train speech --init-from``; the paper's initialisation: the
-    #: encoders' width, depth and patch size must be DeiT's, as in the ``paper`` preset). Empty: random.
+    #: Where the weights start (``train speech --init-from``; empty: random): DeiT weights (timm's layout,
+    #: ``.safetensors`` or ``.pth``, e.g. deit_base_distilled_patch16_384) for the three audio encoders (the
+    #: paper's initialisation: the encoders' width, depth and patch size must be DeiT's, as in the ``paper``
+    #: preset), or a trained speech model (its run folder or ``.json``) of the same architecture, whole: a
+    #: second stage that trains it on with other settings (augmentation, learning rate).
     init_from: str = ""
 
     @classmethod
@@ -111,9 +113,7 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         torch.manual_seed(seed)  # weight initialisation, reproducible per run seed
         self.model = SpeechDisentangler(self.cfg.model)
         if self.cfg.init_from:
-            weights = load_deit_state_dict(self.cfg.init_from)
-            init_speech_model_from_pretrained(self.model,
-                                              adapt_deit_to_audio(weights, self.model.content_encoder.vit.config))
+            start_weights(self.model, self.cfg.init_from)
         # the linear heads of switched-off extension terms take no part (DDP requires every trained
         # parameter to receive a gradient)
         for term, heads in (("latent_classes", ("emotion_from_latent", "speaker_from_latent")),
@@ -163,6 +163,23 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
 
         sched = torch.optim.lr_scheduler.LambdaLR(opt, factor)
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
+
+
+def start_weights(model: SpeechDisentangler, path: str) -> None:
+    """Load ``model``'s starting weights from ``path`` (:attr:`SpeechTrainConfig.init_from`): a trained speech
+    model of the same architecture (every weight), or DeiT weights (the three audio encoders)."""
+    weights, meta = model_paths(path)
+    if not (weights.is_file() and meta.is_file()):
+        init_speech_model_from_pretrained(model, adapt_deit_to_audio(load_deit_state_dict(path),
+                                                                     model.content_encoder.vit.config))
+        return
+    start = load_model(path, "speech")
+    old, new = to_dict(start.config), to_dict(model.config)
+    if old != new:
+        changed = ", ".join(sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k)))
+        raise ConfigError(f"{meta}: a speech model of another architecture ({changed}); --init-from needs the "
+                          "same model settings (and the same training speakers)")
+    model.load_state_dict(start.model.state_dict())
 
 
 def speech_model_metadata(cache, speakers: list[int], step: int, train_splits: list[str]) -> SpeechMetadata:
