@@ -211,7 +211,8 @@ Only the project's **synthetic corpus** (`emogesture corpus --speakers 30`, vers
 
 - speech model: `--losses adversarial`, 1300 steps, half of its windows heard through augmented
   recording conditions (`--set wave_augment=0.5`: rooms, noise, microphones, telephone, voice and
-  tempo shifts), **train split only**;
+  tempo shifts), then 700 more from there (`--init-from`, learning rate 5e-4) with three quarters of
+  its windows augmented, voices moved by up to 6 semitones and more level changes, **train split only**;
 - extractor M: 600 steps, train split;
 - gesture model: joint training, {gesture_steps} steps (450 prior-only first), train split; its residual noise
   and the speech model's emotion perception are calibrated on the **val** split, which no model
@@ -220,7 +221,7 @@ Only the project's **synthetic corpus** (`emogesture corpus --speakers 30`, vers
 
 Training wall time on 2 CPU cores: {"; ".join(card["training_seconds"])}.
 
-Rebuild from scratch (about 100 minutes on 2 cores):
+Rebuild from scratch (about 135 minutes on 2 cores):
 
 ```bash
 {REBUILD}
