@@ -107,6 +107,11 @@ def to_dict(obj: Any) -> dict:
     return plain(dataclasses.asdict(obj))
 
 
+def changed_keys(old: dict, new: dict) -> list[str]:
+    """The top-level keys whose values differ between two settings dicts (one missing counts), sorted."""
+    return sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+
+
 def apply_overrides(cls: type[T], base: dict, overrides: list[str]) -> T:
     """Apply ``a.b=value`` strings to a dict of ``cls`` and build it."""
     data = _deepcopy(base)

@@ -23,6 +23,7 @@ from lightning.fabric.plugins.io.torch_io import TorchCheckpointIO
 from lightning.pytorch.callbacks import Callback, ModelCheckpoint, TQDMProgressBar
 from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
 
+from emogesture.config import changed_keys
 from emogesture.errors import EmogestureError
 from emogesture.fileio import read_json
 
@@ -159,7 +160,7 @@ def check_run_dir(run_dir: Path, settings_blob: dict, overwrite: bool = False) -
     if run_json.is_file():
         old = read_json(run_json, "run settings file")
         if old != settings_blob and not overwrite:
-            changed = sorted(k for k in set(old) | set(settings_blob) if old.get(k) != settings_blob.get(k))
+            changed = changed_keys(old, settings_blob)
             raise EmogestureError(
                 f"{run_dir}: holds a run with other settings ({', '.join(changed)}); "
                 "use another --out, or --overwrite to start it again"

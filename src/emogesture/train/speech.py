@@ -13,7 +13,7 @@ from torch.utils.data import DataLoader
 from emogesture.audio import augment_fbank, scramble_segments
 from emogesture.audio.wave_augment import WaveAugmentConfig
 from emogesture.checkpoints import load_model, model_paths, save_model
-from emogesture.config import from_dict, to_dict
+from emogesture.config import changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
 from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
@@ -176,7 +176,7 @@ def start_weights(model: SpeechDisentangler, path: str) -> None:
     start = load_model(path, "speech")
     old, new = to_dict(start.config), to_dict(model.config)
     if old != new:
-        changed = ", ".join(sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k)))
+        changed = ", ".join(changed_keys(old, new))
         raise ConfigError(f"{meta}: a speech model of another architecture ({changed}); --init-from needs the "
                           "same model settings (and the same training speakers)")
     model.load_state_dict(start.model.state_dict())
