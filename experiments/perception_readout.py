@@ -1,13 +1,15 @@
 """Is the emotion perception limited by its read-out or by the speech model's latents?
 
-The perception hears a window's emotion through the speech model's classifier head. The same model's
-emotion latent can be read another way, with nothing retrained: by the nearest emotion mean in the
-calibration's own distance (a linear discriminant, :class:`emogesture.pipeline.perception.LatentRange`,
-its posterior ``softmax(-D d² / 2)``), by the head and that posterior together (their log-probabilities
-summed), or by the nearest mean of a range fitted on the training windows both as recorded and heard
-once more through the training augmentation (:mod:`emogesture.audio.wave_augment`). Each is scored on
-the held-out voices of a split (val by default: the choice is made there) under the recording changes of
-``perception_shift.py``, and on the real read speech (a check, not a criterion).
+The perception used to hear a window's emotion through the speech model's classifier head alone. The
+same model's emotion latent can be read another way, with nothing retrained: by the nearest emotion mean
+in the calibration's own distance (a linear discriminant, ``LatentRange.log_posteriors`` of
+:mod:`emogesture.pipeline.perception`, its posterior ``softmax(-D d² / 2)``); by the head and that
+posterior together (their log-probabilities summed) everywhere, weighted by the window's emotion trust,
+or only where the emotion latent lies within the calibrated range (what the perception now does:
+``EmotionPerception.read``); or by the nearest mean of a range fitted on the training windows both as
+recorded and heard once more through the training augmentation (:mod:`emogesture.audio.wave_augment`).
+Each is scored on the held-out voices of a split (val by default: the choice is made there) under the
+recording changes of ``perception_shift.py``, and on the real read speech (a check, not a criterion).
 
 Usage: python experiments/perception_readout.py SPEECH_MODEL CACHE OUT_DIR [SPLIT]
 """
@@ -27,28 +29,22 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.datasets import WaveWindowAugmenter
 from emogesture.data.real_speech import load_real_recording, real_recordings
-from emogesture.pipeline.perception import LatentRange, perception_of
+from emogesture.pipeline.perception import LatentRange, log_softmax, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 HOP_SECONDS = 8.0  # as perception_shift.py
 
 
-def log_softmax(x: np.ndarray) -> np.ndarray:
-    x = x - x.max(1, keepdims=True)
-    return x - np.log(np.exp(x).sum(1, keepdims=True))
-
-
-def discriminant(latent_range: LatentRange, emotion: np.ndarray) -> np.ndarray:
-    """Log-posteriors ``[W, K]`` of the nearest-mean read-out (equal priors, the range's shared covariance)."""
-    return log_softmax(-0.5 * emotion.shape[1] * latent_range.distances(emotion) ** 2)
-
-
 def readouts(perception, augmented: LatentRange) -> dict:
     """Name -> function of (emotion latents ``[W, D]``, head logits ``[W, 8]``) -> log-scores ``[W, 8]``."""
-    return {"classifier head (shipped)": lambda e, logits: log_softmax(logits),
-            "nearest emotion mean": lambda e, logits: discriminant(perception.emotion, e),
-            "head and nearest mean": lambda e, logits: log_softmax(logits) + discriminant(perception.emotion, e),
-            "nearest mean, augmented range": lambda e, logits: discriminant(augmented, e)}
+    means = perception.emotion.log_posteriors
+    return {"classifier head": lambda e, logits: log_softmax(logits),
+            "nearest emotion mean": lambda e, logits: means(e),
+            "head and nearest mean": lambda e, logits: log_softmax(logits) + means(e),
+            "head, and nearest mean weighted by the emotion trust":
+                lambda e, logits: log_softmax(logits) + perception.emotion.trust(e)[:, None] * means(e),
+            "head, and nearest mean within the range (shipped)": lambda e, logits: perception.read(e, logits),
+            "nearest mean, augmented range": lambda e, logits: augmented.log_posteriors(e)}
 
 
 def augmented_range(encoder: SpeechLatentEncoder, cache, seed: int = 0) -> LatentRange:
@@ -90,7 +86,8 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
     real = {}
     for rec in real_recordings():
         enc, _ = encoder.encode(load_real_recording(rec), 16000, HOP_SECONDS)
-        real[rec.name] = {k: [EMOTIONS[i] for i in f(enc.emotion, enc.emotion_logits).argmax(1)] for k, f in fns.items()}
+        real[rec.name] = {k: [EMOTIONS[i] for i in f(enc.emotion, enc.emotion_logits).argmax(1)]
+                          for k, f in fns.items()}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / f"perception_readout_{split}.json").write_text(json.dumps({"split": split, "takes": len(takes),

@@ -7,7 +7,8 @@ import pytest
 
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
-from emogesture.pipeline.perception import EmotionPerception, auto_emotion, auto_style, fit_perception
+from emogesture.pipeline.perception import (EmotionPerception, auto_emotion, auto_style, fit_perception, log_softmax,
+                                            perceive)
 from emogesture.pipeline.speech import EncodedWindows
 
 
@@ -85,6 +86,45 @@ def test_auto_moves_an_unfamiliar_voice_to_the_gesture_models_fallback_style():
     assert not np.allclose(moved, np.broadcast_to(p.typical_style(), moved.shape), atol=1e-2)
     with pytest.raises(EmogestureError, match="fallback style has shape"):
         auto_style(inside + 50.0, p, fallback[:10])
+
+
+def test_the_heard_emotion_adds_the_nearest_mean_only_within_the_range():
+    p, train, held = fitted()
+    inside = held[(p.emotion.nearest(held) <= p.emotion.threshold)][:16]
+    nearest = p.emotion.distances(inside).argmin(1)
+    flat = np.zeros((len(inside), 8))  # a head that cannot tell: the nearest mean decides
+    assert (p.read(inside, flat).argmax(1) == nearest).all()
+    assert np.allclose(np.exp(p.read(inside, flat)).sum(1), 1.0)
+    sure = np.full((len(inside), 8), -1e4)
+    sure[:, 5] = 1e4  # a head that is certain outvotes the means
+    assert (p.read(inside, sure).argmax(1) == 5).all()
+    # beyond the calibrated range the head alone decides, whatever the nearest mean
+    far = inside + 40.0 * p.emotion.axes[0] * np.sqrt(p.emotion.variances[0])
+    assert (p.emotion.nearest(far) > p.emotion.threshold).all()
+    leaning = np.zeros((len(far), 8))
+    leaning[:, 2] = 0.1
+    assert np.allclose(p.read(far, leaning), log_softmax(leaning))
+    # what perceive reports: these probabilities and their argmax; an uncalibrated model keeps the head's softmax
+    heard = perceive(windows(inside, inside), list(range(len(inside))), p, "take")
+    assert heard.labels == [EMOTIONS[k] for k in nearest] and np.allclose(heard.probabilities.sum(1), 1.0)
+    raw = perceive(EncodedWindows(np.zeros((len(inside), 4)), inside, inside, sure, np.zeros((len(inside), 2))),
+                   list(range(len(inside))), None, "take")
+    assert set(raw.labels) == {EMOTIONS[5]} and raw.distance is None
+
+
+def test_an_emotion_the_calibration_never_saw_is_never_heard_within_the_range():
+    train, labels = clusters(60, 0)
+    keep = labels != 3
+    held, held_labels = clusters(20, 1)
+    p = fit_perception(windows(train[keep]), labels[keep], labels[keep] % 2, windows(held[held_labels != 3]))
+    assert EMOTIONS[3] not in p.labels
+    near = train[labels == 0][:5]  # familiar windows (neutral) and windows near no known mean
+    far = train[labels == 3][:5]
+    assert (p.emotion.nearest(near) <= p.emotion.threshold).all()
+    assert (p.emotion.nearest(far) > p.emotion.threshold).all()
+    head = np.zeros((5, 8))
+    head[:, 3] = 1e3  # a head sure of the emotion the calibration never saw
+    assert (p.read(near, head).argmax(1) != 3).all() and (p.read(far, head).argmax(1) == 3).all()
 
 
 def test_round_trip_and_refusals():

@@ -57,6 +57,7 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
     assert report["chance"] == {"emotion": 0.5, "speaker": pytest.approx(1 / 3)}
     assert report["EA"] >= 0.75 and report["SA"] > 0.5, (report["EA"], report["SA"])
     assert report["split_use"]["held_out"] and report["checks"]["EA >= 0.9"]["value"] == report["EA"]
+    assert report["EA_perceived"] is None  # no perception calibration: the head's EA only
     # the quadruples pair test texts with texts of no split it trained on: here there is none
     assert report["reconstruction_partner_split"] is None and report["reconstruction_l1"]["XCon"] is None
     assert "not measured" in (run / "eval" / "speech_test.md").read_text()

@@ -23,6 +23,7 @@ from emogesture.eval.classification import classification_report
 from emogesture.eval.plots import save_confusion_matrix
 from emogesture.eval.probes import linear_probe_accuracy
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
+from emogesture.pipeline.perception import perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_emotion", "XSty": "cross_style"}
@@ -148,6 +149,9 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     test = cache.split(split)
     enc = encoder.encode_split(cache, split)
     emo_rep = classification_report(test.emotion, enc.emotion_logits.argmax(1), len(EMOTIONS))
+    perception = perception_of(encoder)  # a calibrated model: the emotion as generate hears it, beside the head's
+    heard = (None if perception is None else
+             float((perception.read(enc.emotion, enc.emotion_logits).argmax(1) == test.emotion).mean()))
     spk_class = {s: i for i, s in enumerate(encoder.speakers)}
     known = np.array([s in spk_class for s in test.speaker_id.tolist()])
     if not known.any():
@@ -176,7 +180,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     result = {
         "run": str(run), "cache": str(cache_dir), "split": split, "windows": len(test), "split_use": split_info,
         "step": encoder.loaded.metadata.step,
-        "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"],
+        "EA": emo_rep["accuracy"], "EF1": emo_rep["macro_f1"], "EA_perceived": heard,
         "SA": spk_rep["accuracy"], "SF1": spk_rep["macro_f1"], "speaker_windows": int(known.sum()),
         "reconstruction_l1": recon,
         "reconstruction_relative_to_self": {k: (v / recon["Self"] if v is not None else None)
@@ -210,6 +214,9 @@ def speech_markdown(r: dict) -> str:
         "Classification (supp. Table A.1 layout)", "",
         "| EA | EF1 | SA | SF1 |", "|---|---|---|---|",
         f"| {r['EA']:.3f} | {r['EF1']:.3f} | {r['SA']:.3f} | {r['SF1']:.3f} |", "",
+        *([f"EA of the emotion perception (the classifier head and the nearest emotion mean within the calibrated "
+           f"range, as `generate` reports it): {r['EA_perceived']:.3f}", ""]
+          if r.get("EA_perceived") is not None else []),
         "Reconstruction L1 on the normalised filterbank (supp. Table A.2 layout; ratio to Self below); "
         + (f"quadruples of {r['split']} texts paired with {r['reconstruction_partner_split']} texts of the same "
            "emotion, neither trained on" if r.get("reconstruction_partner_split") else

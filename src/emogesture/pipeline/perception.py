@@ -18,6 +18,15 @@ The voice is what tells unfamiliar speech apart: measured on held-out takes play
 style distance flags most windows of a voice 4 semitones lower, of a telephone band, of speech in
 white noise and of noise alone, where the emotion distance flags few (`experiments/reports/bundled_model/`).
 
+The emotion a window is *heard* as (its label, and the probabilities ``generate`` reports) is read
+off both of the model's views of it (:meth:`EmotionPerception.read`): the classifier head's
+log-probabilities, plus, where the window's emotion latent lies within the calibrated range (emotion
+distance at most its threshold), the log-posterior of the nearest emotion mean in that same distance
+(a linear discriminant with equal priors). Within the range either can decide where the other is
+unsure; beyond it the means say little and the head decides alone. Chosen on the val split's held-out
+voices under changed recording conditions, against the head alone and the sum everywhere or weighted
+by the trust (`experiments/reports/perception_readout/`).
+
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
 emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
@@ -54,6 +63,13 @@ from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
 TRUST_QUANTILE = 0.99
 COMPONENTS = 32
+
+
+def log_softmax(x: np.ndarray) -> np.ndarray:
+    """Row-wise log-softmax of scores ``[W, K]``."""
+    x = np.asarray(x, np.float64)
+    x = x - x.max(1, keepdims=True)
+    return x - np.log(np.exp(x).sum(1, keepdims=True))
 
 
 @dataclass
@@ -94,6 +110,11 @@ class LatentRange:
     def nearest(self, latents: np.ndarray) -> np.ndarray:
         return self.distances(latents).min(1)
 
+    def log_posteriors(self, latents: np.ndarray) -> np.ndarray:
+        """Latents ``[W, D]`` -> log-posteriors ``[W, K]`` of the class means: equal priors and this range's
+        shared covariance (a linear discriminant), ``log softmax(−D d² / 2)`` of the distances ``d``."""
+        return log_softmax(-0.5 * np.shape(latents)[1] * self.distances(latents) ** 2)
+
     def trust(self, latents: np.ndarray) -> np.ndarray:
         """``[W]`` in [0, 1]: 1 up to the threshold, falling linearly to 0 at twice the threshold."""
         return np.clip(2.0 - self.nearest(latents) / self.threshold, 0.0, 1.0)
@@ -120,6 +141,19 @@ class EmotionPerception:
     def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
         return np.minimum(self.emotion.trust(emotion), self.voice.trust(style))
+
+    def read(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
+        """The emotion heard in each window, as log-probabilities ``[W, 8]`` over ``EMOTIONS``, from the
+        windows' emotion latents ``[W, D]`` and classifier-head logits ``[W, 8]``: the head's, summed with
+        the nearest-mean posterior (renormalised) where the emotion latent lies within the calibrated range
+        (module docstring)."""
+        head = log_softmax(logits)
+        inside = self.emotion.nearest(emotion) <= self.emotion.threshold
+        if not inside.any():
+            return head
+        means = np.full_like(head, -np.inf)  # an emotion the calibration never saw has no mean
+        means[:, [EMOTIONS.index(k) for k in self.labels]] = self.emotion.log_posteriors(emotion)
+        return np.where(inside[:, None], log_softmax(head + means), head)
 
     def neutral(self) -> np.ndarray:
         return self.emotion.means[self.labels.index("neutral")]
@@ -174,7 +208,7 @@ class PerceivedEmotion:
     source: str
     starts_s: list[float]
     labels: list[str]  # per window, the classifier's emotion
-    probabilities: np.ndarray  # [W, 8] softmax of the emotion logits
+    probabilities: np.ndarray  # [W, 8] over EMOTIONS: EmotionPerception.read (the head's softmax if uncalibrated)
     distance: np.ndarray | None  # [W, 2] emotion / voice distance over its threshold (None: not calibrated)
     trust: np.ndarray | None  # [W]
     #: per window, the emotion animated instead, where a timeline says (keyframe name -> share of the window)
@@ -229,9 +263,8 @@ class PerceivedEmotion:
 
 def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerception | None,
              source: str) -> PerceivedEmotion:
-    logits = np.asarray(enc.emotion_logits, np.float64)
-    probs = np.exp(logits - logits.max(1, keepdims=True))
-    probs /= probs.sum(1, keepdims=True)
+    probs = np.exp(log_softmax(enc.emotion_logits) if perception is None
+                   else perception.read(enc.emotion, enc.emotion_logits))
     labels = [EMOTIONS[int(k)] for k in probs.argmax(1)]
     distance = trust = None
     if perception is not None:
