@@ -1,7 +1,7 @@
 # emogesture — two commands for a fresh machine:
 #   make demo   set everything up, then animate the shipped speech clips with the bundled model
 #   make test   set everything up, then run the test suite
-# and, for maintainers, `make model` rebuilds the bundled model from scratch (about 135 min on 2 cores).
+# and, for maintainers, `make model` rebuilds the bundled model from scratch (about 110 min on 2 cores).
 SHELL := /bin/bash
 PYTHON ?= python3.11
 VENV := .venv

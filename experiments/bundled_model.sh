@@ -2,7 +2,9 @@
 # Rebuilds the model bundled with the package (src/emogesture/assets/model/) from scratch, with the
 # project's own recipe, on the experiments' synthetic corpus (common.sh: 30 voices, split by text and by
 # speaker); `make model` runs it. Every step resumes when re-run (finished trainings are not redone).
-# About 135 min on 2 CPU cores.
+# About 110 min on 2 CPU cores (the speech stages' time measured on 40-80-step runs with their data
+# workers; the bundled model's own build, before them, took about 135 min, its trainings in
+# reports/bundled_model/training_time.txt).
 #   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
@@ -34,7 +36,8 @@ timed() {  # name command... : runs a training step and appends its wall time to
     "$@"
     echo "$name: $(( $(date +%s) - start )) s" >> "$RUN/times.txt"
 }
-# the speech model and the extractor side by side, one thread each (two for one left alone)
+# the speech model and the extractor side by side, one thread each (two for one left alone); the speech
+# model's windows are augmented in 2 data workers beside its one training thread (the same draws)
 todo=()
 grep -qs '"step": 1300' "$RUN/speech/model.json" || todo+=(speech)
 grep -qs '"step": 600' "$RUN/extractor/model.json" || todo+=(extractor)
@@ -42,8 +45,8 @@ threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
 pids=()
 for model in "${todo[@]}"; do
     if [ "$model" = speech ]; then
-        OMP_NUM_THREADS=$threads timed speech $EG train speech --data "$CACHE" --out "$RUN/speech" \
-            --losses adversarial --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 --quiet &
+        timed speech $EG train speech --data "$CACHE" --out "$RUN/speech" --losses adversarial --steps 1300 \
+            --checkpoint-every 100 --set wave_augment=0.5 --set num_workers=2 --quiet &
     else
         OMP_NUM_THREADS=$threads timed extractor $EG train extractor --data "$CACHE" --out "$RUN/extractor" \
             --steps 600 --checkpoint-every 100 --quiet &
@@ -52,10 +55,10 @@ for model in "${todo[@]}"; do
 done
 for pid in "${pids[@]}"; do wait "$pid"; done
 SPEECH=$RUN/speech_tuned
-grep -qs '"step": 700' "$SPEECH/model.json" || OMP_NUM_THREADS=2 timed speech_tuned $EG train speech --data "$CACHE" \
+grep -qs '"step": 700' "$SPEECH/model.json" || timed speech_tuned $EG train speech --data "$CACHE" \
     --init-from "$RUN/speech" --out "$SPEECH" --losses adversarial --steps 700 --checkpoint-every 100 \
     --set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6 \
-    --set lr=5e-4 --set lr_decay_start=100 --quiet
+    --set lr=5e-4 --set lr_decay_start=100 --set num_workers=2 --quiet
 grep -qs '"step": 2400' "$RUN/gesture/model.json" || timed gesture $EG train gesture --data "$CACHE" --speech "$SPEECH" \
     --out "$RUN/gesture" --steps 2400 --checkpoint-every 200 --quiet
 

@@ -111,6 +111,30 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     assert str(saved + 3) in (run / "logs" / "metrics.csv").read_text().split("\n", 1)[1]
 
 
+def test_data_workers_draw_the_same_windows_and_leave_the_trainer_their_cores(cache, tmp_path):
+    import os
+
+    from safetensors.numpy import load_file
+
+    from emogesture.train.engine import trainer_threads
+
+    weights = []
+    for workers in (0, 2):  # 8 steps over two epochs of augmented windows, one trainer thread each time
+        run = tmp_path / f"workers{workers}"
+        out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 8, "--set", "samples_per_epoch=8",
+                                 "--set", "wave_augment=0.5", "--set", f"num_workers={workers}"),
+                             capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        weights.append(load_file(run / "model.safetensors"))
+    assert all(np.array_equal(weights[0][k], weights[1][k]) for k in weights[0])
+    # the worker count is no setting of what is learned: a run resumes with another
+    more = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 9, "--set", "samples_per_epoch=8",
+                              "--set", "wave_augment=0.5", "--set", "num_workers=0"), capture_output=True, text=True)
+    assert more.returncode == 0 and "at step 8" in more.stdout, more.stderr[-2000:]
+    assert trainer_threads(2, 2, {}) == 1 and trainer_threads(1, 8, {}) == 7
+    assert trainer_threads(0, 2, {}) is None and trainer_threads(2, 2, {"OMP_NUM_THREADS": "2"}) is None
+
+
 def test_two_process_ddp_gives_identical_weights(cache, tmp_path):
     run = tmp_path / "ddp"
     out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 3, "--devices", 2),

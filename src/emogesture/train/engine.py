@@ -151,16 +151,26 @@ def last_checkpoint(run_dir: Path) -> Path | None:
     return p if p.is_file() else None
 
 
+#: Settings that say how the work is spread, not what is learned: a run resumes with other values.
+RUNTIME_SETTINGS = ("num_workers",)
+
+
+def _learning_settings(blob: dict) -> dict:
+    config = {k: v for k, v in blob.get("config", {}).items() if k not in RUNTIME_SETTINGS}
+    return {**blob, "config": config} if "config" in blob else blob
+
+
 def check_run_dir(run_dir: Path, settings_blob: dict, overwrite: bool = False) -> bool:
     """Create or re-open a run folder; returns True when resuming.
 
-    A folder holding another command's run is refused (one line), unless ``overwrite``.
+    A folder holding another command's run, or this command's with other settings (but for
+    :data:`RUNTIME_SETTINGS`), is refused (one line), unless ``overwrite``.
     """
     run_json = run_dir / "run.json"
     if run_json.is_file():
-        old = read_json(run_json, "run settings file")
-        if old != settings_blob and not overwrite:
-            changed = changed_keys(old, settings_blob)
+        old = _learning_settings(read_json(run_json, "run settings file"))
+        if old != _learning_settings(settings_blob) and not overwrite:
+            changed = changed_keys(old, _learning_settings(settings_blob))
             raise EmogestureError(
                 f"{run_dir}: holds a run with other settings ({', '.join(changed)}); "
                 "use another --out, or --overwrite to start it again"
@@ -228,9 +238,23 @@ def keep_previous_log(run_dir: Path) -> Path | None:
     return kept
 
 
+def trainer_threads(num_workers: int, cpus: int, env: dict) -> int | None:
+    """How many threads the training process keeps for itself when ``num_workers`` data-loading
+    processes work beside it: one core less per worker (at least one). None: leave torch's own choice
+    (no workers, or ``OMP_NUM_THREADS`` in ``env`` says how many)."""
+    if num_workers <= 0 or "OMP_NUM_THREADS" in env:
+        return None
+    return max(1, cpus - num_workers)
+
+
 def fit(trainer: L.Trainer, module: L.LightningModule, datamodule: L.LightningDataModule, run_dir: Path,
         resume: bool) -> None:
-    """``trainer.fit``, resuming from ``last.ckpt`` when asked (weights-only loading)."""
+    """``trainer.fit``, resuming from ``last.ckpt`` when asked (weights-only loading). With data-loading
+    workers (``num_workers``) the training process leaves them their cores (:func:`trainer_threads`)."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    threads = trainer_threads(getattr(datamodule, "num_workers", 0), cpus, dict(os.environ))
+    if threads is not None:
+        torch.set_num_threads(threads)
     ckpt_path = last_checkpoint(run_dir) if resume else None
     if ckpt_path is not None and trainer.is_global_zero:
         print(f"resuming from {ckpt_path} at step {checkpoint_step(ckpt_path)}", flush=True)
