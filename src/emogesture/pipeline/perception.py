@@ -25,7 +25,7 @@ distance at most its threshold), the log-posterior of the nearest emotion mean i
 (a linear discriminant with equal priors). Within the range either can decide where the other is
 unsure; beyond it the means say little and the head decides alone. Chosen on the val split's held-out
 voices under changed recording conditions, against the head alone and the sum everywhere or weighted
-by the trust (`experiments/reports/perception_readout/`).
+by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
 
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
@@ -207,7 +207,7 @@ class PerceivedEmotion:
 
     source: str
     starts_s: list[float]
-    labels: list[str]  # per window, the classifier's emotion
+    labels: list[str]  # per window, the emotion heard (the most probable)
     probabilities: np.ndarray  # [W, 8] over EMOTIONS: EmotionPerception.read (the head's softmax if uncalibrated)
     distance: np.ndarray | None  # [W, 2] emotion / voice distance over its threshold (None: not calibrated)
     trust: np.ndarray | None  # [W]
