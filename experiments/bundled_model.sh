@@ -2,8 +2,8 @@
 # Rebuilds the model bundled with the package (src/emogesture/assets/model/) from scratch, with the
 # project's own recipe, on the experiments' synthetic corpus (common.sh: 30 voices, split by text and by
 # speaker); `make model` runs it. Every step resumes when re-run (finished trainings are not redone).
-# About 110 min on 2 CPU cores (the speech stages' time measured on 40-80-step runs with their data
-# workers; the bundled model's own build, before them, took about 135 min, its trainings in
+# About 110 min on 2 CPU cores (the second speech stage measured whole with its data workers, the first
+# on an 80-step run; the bundled model's own build, before them, took about 135 min, its trainings in
 # reports/bundled_model/training_time.txt).
 #   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
