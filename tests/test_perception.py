@@ -127,6 +127,30 @@ def test_an_emotion_the_calibration_never_saw_is_never_heard_within_the_range():
     assert (p.read(near, head).argmax(1) != 3).all() and (p.read(far, head).argmax(1) == 3).all()
 
 
+def test_the_temperature_makes_the_read_outs_confidence_its_accuracy_and_changes_no_label():
+    rng = np.random.default_rng(5)
+    centres = rng.normal(0, 0.5, (8, 48))  # overlapping emotions, held-out windows more spread than the
+    labels = np.repeat(np.arange(8), 80)   # training ones: the means' posterior is overconfident on them
+    train = centres[labels] + rng.normal(0, 1, (len(labels), 48))
+    held_labels = np.repeat(np.arange(8), 60)
+    held = centres[held_labels] + rng.normal(0, 1.5, (len(held_labels), 48))
+    logits = np.zeros((len(held), 8))  # a head that cannot tell
+    held_windows = EncodedWindows(np.zeros((len(held), 4)), held, held, logits, np.zeros((len(held), 2)))
+    plain = fit_perception(windows(train), labels, labels % 2, held_windows)
+    tempered = fit_perception(windows(train), labels, labels % 2, held_windows, held_out_emotions=held_labels)
+    assert plain.temperature == 1.0 and tempered.temperature > 1.5
+    inside = tempered.emotion.nearest(held) <= tempered.emotion.threshold
+    before, after = plain.read(held, logits)[inside], tempered.read(held, logits)[inside]
+    assert (before.argmax(1) == after.argmax(1)).all()
+    right = (after.argmax(1) == held_labels[inside]).mean()
+    assert abs(np.exp(after.max(1)).mean() - right) < 0.05 < np.exp(before.max(1)).mean() - right
+    # stored with the calibration; a calibration from before the temperature reads as 1
+    d = tempered.to_dict()
+    assert EmotionPerception.from_dict(d).temperature == tempered.temperature
+    del d["temperature"]
+    assert EmotionPerception.from_dict(d).temperature == 1.0
+
+
 def test_round_trip_and_refusals():
     p, train, held = fitted(10)
     q = EmotionPerception.from_dict(p.to_dict())

@@ -157,7 +157,8 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite)
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
-          f"{p.info['held_out_windows']} {args.split} windows): {args.out / 'model.json'}")
+          f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}: "
+          f"{args.out / 'model.json'}")
     return 0
 
 

@@ -23,7 +23,10 @@ off both of the model's views of it (:meth:`EmotionPerception.read`): the classi
 log-probabilities, plus, where the window's emotion latent lies within the calibrated range (emotion
 distance at most its threshold), the log-posterior of the nearest emotion mean in that same distance
 (a linear discriminant with equal priors). Within the range either can decide where the other is
-unsure; beyond it the means say little and the head decides alone. Chosen on the val split's held-out
+unsure; beyond it the means say little and the head decides alone. The sum is divided by a
+temperature fitted on the held-out windows within the range (their mean negative log-likelihood), so
+that its probabilities say how often it is right there (the posterior of the means alone, over a
+latent of many dimensions, is near 0 or 1 everywhere); the division changes no label. Chosen on the val split's held-out
 voices under changed recording conditions, against the head alone and the sum everywhere or weighted
 by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
 
@@ -137,6 +140,7 @@ class EmotionPerception:
     emotion: LatentRange  # emotion latent around the emotion means
     voice: LatentRange  # style latent around the training speakers' means
     info: dict  # how it was measured (splits, windows, quantile)
+    temperature: float = 1.0  # divides the read-out's summed log-probabilities within the range (read)
 
     def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
@@ -145,15 +149,15 @@ class EmotionPerception:
     def read(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         """The emotion heard in each window, as log-probabilities ``[W, 8]`` over ``EMOTIONS``, from the
         windows' emotion latents ``[W, D]`` and classifier-head logits ``[W, 8]``: the head's, summed with
-        the nearest-mean posterior (renormalised) where the emotion latent lies within the calibrated range
-        (module docstring)."""
+        the nearest-mean posterior where the emotion latent lies within the calibrated range, divided by
+        :attr:`temperature` and renormalised (module docstring)."""
         head = log_softmax(logits)
         inside = self.emotion.nearest(emotion) <= self.emotion.threshold
         if not inside.any():
             return head
         means = np.full_like(head, -np.inf)  # an emotion the calibration never saw has no mean
         means[:, [EMOTIONS.index(k) for k in self.labels]] = self.emotion.log_posteriors(emotion)
-        return np.where(inside[:, None], log_softmax(head + means), head)
+        return np.where(inside[:, None], log_softmax((head + means) / self.temperature), head)
 
     def neutral(self) -> np.ndarray:
         return self.emotion.means[self.labels.index("neutral")]
@@ -169,19 +173,20 @@ class EmotionPerception:
 
     def to_dict(self) -> dict:
         return {"labels": list(self.labels), "emotion": self.emotion.to_dict(), "voice": self.voice.to_dict(),
-                "info": self.info}
+                "info": self.info, "temperature": self.temperature}
 
     @classmethod
     def from_dict(cls, d: dict) -> "EmotionPerception":
         return cls(list(d["labels"]), LatentRange.from_dict(d["emotion"]), LatentRange.from_dict(d["voice"]),
-                   dict(d.get("info", {})))
+                   dict(d.get("info", {})), float(d.get("temperature", 1.0)))
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
-                   quantile: float = TRUST_QUANTILE) -> EmotionPerception:
+                   quantile: float = TRUST_QUANTILE, held_out_emotions: np.ndarray | None = None) -> EmotionPerception:
     """Emotion means (by ``emotions`` ``[N]``, indices into ``EMOTIONS``) and speaker means (by
     ``speakers`` ``[N]``) with their within-class spread from training windows; each threshold is the
-    ``quantile`` of the held-out windows' distances."""
+    ``quantile`` of the held-out windows' distances; with the held-out windows' emotions ``[M]``, the
+    read-out's temperature is fitted on those within the range (:func:`fit_temperature`)."""
     emotions, speakers = np.asarray(emotions), np.asarray(speakers)
     present = sorted(set(emotions.tolist()))
     if EMOTIONS.index("neutral") not in present:
@@ -193,7 +198,36 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
     voice.threshold = float(np.quantile(d_voice, quantile))
     info = {"train_windows": int(len(emotions)), "held_out_windows": int(len(d_emotion)), "quantile": float(quantile),
             "held_out_distance_median": {"emotion": float(np.median(d_emotion)), "voice": float(np.median(d_voice))}}
-    return EmotionPerception([EMOTIONS[k] for k in present], emotion, voice, info)
+    perception = EmotionPerception([EMOTIONS[k] for k in present], emotion, voice, info)
+    if held_out_emotions is not None:
+        inside = d_emotion <= emotion.threshold
+        perception.temperature = fit_temperature(perception, held_out.emotion[inside], held_out.emotion_logits[inside],
+                                                 np.asarray(held_out_emotions)[inside])
+        info["temperature_windows"] = int(inside.sum())
+    return perception
+
+
+def fit_temperature(perception: EmotionPerception, emotion: np.ndarray, logits: np.ndarray,
+                    labels: np.ndarray) -> float:
+    """The temperature (0.5-1000) that minimises the mean negative log-likelihood of ``labels`` ``[M]``
+    (indices into ``EMOTIONS``) under the read-out's summed log-probabilities of windows within the range
+    (emotion latents ``[M, D]``, head logits ``[M, 8]``); 1 without windows."""
+    from scipy.optimize import minimize_scalar
+
+    if len(labels) == 0:
+        return 1.0
+    head = log_softmax(logits)
+    means = np.full_like(head, -np.inf)
+    means[:, [EMOTIONS.index(k) for k in perception.labels]] = perception.emotion.log_posteriors(emotion)
+    summed = head + means
+    rows = np.arange(len(labels))
+
+    def nll(log_t: float) -> float:
+        lp = log_softmax(summed / np.exp(log_t))[rows, labels]
+        return float(-np.maximum(lp, -1e3).mean())  # a label the means never saw: a bounded penalty
+
+    best = minimize_scalar(nll, bounds=(np.log(0.5), np.log(1000.0)), method="bounded")
+    return float(np.exp(best.x))
 
 
 def perception_of(encoder: SpeechLatentEncoder) -> EmotionPerception | None:
@@ -322,7 +356,8 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     train = encoder.encode_split(cache, "train")
     held = encoder.encode_split(cache, split)
     windows = cache.split("train")
-    perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile)
+    perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile,
+                                held_out_emotions=cache.split(split).emotion)
     perception.info.update(split=split, trained_on=trained_on)
     metadata = loaded.metadata.replace(train_splits=trained_on, emotion_perception=perception.to_dict())
     save_model(out, "speech", loaded.model, loaded.config, metadata)
