@@ -26,9 +26,9 @@ distance at most its threshold), the log-posterior of the nearest emotion mean i
 unsure; beyond it the means say little and the head decides alone. The sum is divided by a
 temperature fitted on the held-out windows within the range (their mean negative log-likelihood), so
 that its probabilities say how often it is right there (the posterior of the means alone, over a
-latent of many dimensions, is near 0 or 1 everywhere); the division changes no label. Chosen on the val split's held-out
-voices under changed recording conditions, against the head alone and the sum everywhere or weighted
-by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
+latent of many dimensions, is near 0 or 1 everywhere); the division changes no label. Chosen on the
+val split's held-out voices under changed recording conditions, against the head alone and the sum
+everywhere or weighted by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
 
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
@@ -146,18 +146,24 @@ class EmotionPerception:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
         return np.minimum(self.emotion.trust(emotion), self.voice.trust(style))
 
+    def summed(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
+        """The head's log-probabilities plus the emotion means' log-posteriors, ``[W, 8]`` over ``EMOTIONS``
+        (an emotion the calibration never saw has no mean: ``-inf``), from emotion latents ``[W, D]`` and
+        head logits ``[W, 8]``; neither tempered nor renormalised."""
+        means = np.full((len(logits), len(EMOTIONS)), -np.inf)
+        means[:, [EMOTIONS.index(k) for k in self.labels]] = self.emotion.log_posteriors(emotion)
+        return log_softmax(logits) + means
+
     def read(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         """The emotion heard in each window, as log-probabilities ``[W, 8]`` over ``EMOTIONS``, from the
-        windows' emotion latents ``[W, D]`` and classifier-head logits ``[W, 8]``: the head's, summed with
-        the nearest-mean posterior where the emotion latent lies within the calibrated range, divided by
-        :attr:`temperature` and renormalised (module docstring)."""
-        head = log_softmax(logits)
+        windows' emotion latents ``[W, D]`` and classifier-head logits ``[W, 8]``: :meth:`summed` divided by
+        :attr:`temperature` and renormalised where the emotion latent lies within the calibrated range, the
+        head's alone elsewhere (module docstring)."""
         inside = self.emotion.nearest(emotion) <= self.emotion.threshold
         if not inside.any():
-            return head
-        means = np.full_like(head, -np.inf)  # an emotion the calibration never saw has no mean
-        means[:, [EMOTIONS.index(k) for k in self.labels]] = self.emotion.log_posteriors(emotion)
-        return np.where(inside[:, None], log_softmax((head + means) / self.temperature), head)
+            return log_softmax(logits)
+        return np.where(inside[:, None], log_softmax(self.summed(emotion, logits) / self.temperature),
+                        log_softmax(logits))
 
     def neutral(self) -> np.ndarray:
         return self.emotion.means[self.labels.index("neutral")]
@@ -216,10 +222,7 @@ def fit_temperature(perception: EmotionPerception, emotion: np.ndarray, logits: 
 
     if len(labels) == 0:
         return 1.0
-    head = log_softmax(logits)
-    means = np.full_like(head, -np.inf)
-    means[:, [EMOTIONS.index(k) for k in perception.labels]] = perception.emotion.log_posteriors(emotion)
-    summed = head + means
+    summed = perception.summed(emotion, logits)
     rows = np.arange(len(labels))
 
     def nll(log_t: float) -> float:
