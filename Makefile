@@ -8,12 +8,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
-# exports (its glTF importer needs python3-numpy); pocketsphinx-testdata holds real recorded speech for the
-# real-speech checks; Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
+# exports (its glTF importer needs python3-numpy); pocketsphinx-testdata and asterisk-core-sounds-en-g722 hold real
+# recorded speech for the real-speech checks; Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
 # driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
-	pocketsphinx-testdata chromium chromium-driver
+	pocketsphinx-testdata asterisk-core-sounds-en-g722 chromium chromium-driver
 GLTF_VALIDATOR := build/node/node_modules/three/package.json
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo

@@ -99,6 +99,15 @@ def real_rows(real: dict) -> str:
         f"{m['reference']['wrist_distance_median']:.3f} m |"])
 
 
+def real_recording_text(real: dict) -> str:
+    """Each real recording's perception: what it is heard as, and how many of its windows `auto` trusts."""
+    def one(name: str, r: dict) -> str:
+        heard = ", ".join(f"{k} {n}" for k, n in sorted(r["heard_counts"].items(), key=lambda kv: -kv[1]))
+        return f"{name} heard as {heard}, {sum(r['trusted'] or [])} of {r['windows']} windows trusted"
+
+    return "; ".join(one(name, r) for name, r in real["real"].items())
+
+
 def level_paragraph(rows: dict) -> str:
     """What the recording's level does to the perception (perception_shift's level rows), or nothing."""
     level = {name: r for name, r in rows.items() if name.startswith("recording level")}
@@ -251,14 +260,20 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 
 - **Real voices lie outside its training data.** It has heard synthetic voices only. On real read
   speech (Debian's `pocketsphinx-testdata`: a LibriVox reader, a man reading card names, three CMU
-  test utterances; `emogesture evaluate real`) beside the test split's neutral takes:
+  test utterances; and `asterisk-core-sounds-en-g722`: a professional voice reading telephone-system
+  prompts; `emogesture evaluate real`) beside the test split's neutral takes:
 
 | real read speech | real | held-out corpus takes |
 |---|---|---|
 {real_rows(real)}
 
   So the emotion it perceives in your voice may be wrong (these real recordings, all read without
-  acted emotion, are heard as {heard_real}), and set it yourself where it matters.
+  acted emotion, are heard as {heard_real}), and set it yourself where it matters. Recording by
+  recording: {real_recording_text(real)}. A window `--emotion auto` trusts is one whose speech lies
+  within the range of the training speech, not one whose emotion is right: the telephone prompts' warm,
+  bright voice lies well within it and is heard as happiness, so its motion is the model's happy motion
+  (the hands more often in front of the chest than the neutral takes'), where the readers' voices,
+  beyond the range, are animated as neutral.
 - **What `generate` does about it.** It prints the emotion it perceives (majority over 10-s windows,
   with its mean probability) and writes every window's perception to `*_perception.json`. A window's
   emotion is read by the speech model's classifier and, where the window's emotion latent lies near an

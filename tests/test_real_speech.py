@@ -17,10 +17,10 @@ from helpers import cli, make_root
 
 def test_the_real_recordings_are_whole_and_leave_tidigits_out():
     found = real_recordings()
-    assert [r.name for r in found] == ["librivox", "cards", "cmu"]
+    assert [r.name for r in found] == ["librivox", "cards", "cmu", "prompts"]
     assert not any("tidigits" in c for r in RECORDINGS for c in r.clips)  # LDC data, left out
     seconds = {r.name: len(load_real_recording(r)) / 16000 for r in found}
-    assert seconds == pytest.approx({"librivox": 25.93, "cards": 10.85, "cmu": 10.41}, abs=0.01)
+    assert seconds == pytest.approx({"librivox": 25.93, "cards": 10.85, "cmu": 10.41, "prompts": 67.6}, abs=0.05)
     for r in found:
         wave = load_real_recording(r)
         assert wave.dtype == np.float32 and np.abs(wave).max() <= 1.01  # the mean removed from full scale
@@ -31,10 +31,12 @@ def test_the_real_recordings_are_whole_and_leave_tidigits_out():
 
 
 def test_missing_recordings_are_a_one_line_error(tmp_path):
-    with pytest.raises(EmogestureError, match="pocketsphinx-testdata"):
+    with pytest.raises(EmogestureError, match="pocketsphinx-testdata asterisk-core-sounds-en-g722"):
         real_recordings(tmp_path)
     with pytest.raises(InputFileError, match="not found"):
         load_real_recording(RECORDINGS[0], tmp_path)
+    with pytest.raises(InputFileError, match="install Debian's asterisk-core-sounds-en-g722"):
+        load_real_recording(RECORDINGS[-1], tmp_path)
 
 
 def _checks(heard, trusted, front, distance):
@@ -56,10 +58,14 @@ def test_report_of_the_bundled_model(tmp_path):
     make_root(tmp_path / "root", speakers=(1,), takes=(1, 2))  # take 2 (neutral) is the test split
     prepare(tmp_path / "root", tmp_path / "cache", progress=False)
     r = evaluate_real_speech(None, tmp_path / "cache", tmp_path / "out", "test", seeds=1, progress=False)
-    assert set(r["real"]) == {"librivox", "cards", "cmu"} and set(r["reference"]) == {"1_wayne_0_2_2"}
+    assert set(r["real"]) == {"librivox", "cards", "cmu", "prompts"} and set(r["reference"]) == {"1_wayne_0_2_2"}
     assert r["pooled"]["real"]["windows"] == sum(row["windows"] for row in r["real"].values()) >= 6
     assert r["split_use"]["held_out"] and len(r["checks"]) == 4
-    assert r["motion"]["real"]["seconds"] == pytest.approx(25.93 + 10.85 + 10.41, abs=0.1)
+    for row in (*r["real"].values(), *r["reference"].values()):  # each recording's own motion beside the pooled
+        assert 0.0 <= row["hand_in_front_share"] <= 1.0 and 0.1 < row["wrist_distance_median"] < 1.5
+    fronts = [row["hand_in_front_share"] for row in r["real"].values()]
+    assert min(fronts) <= r["motion"]["real"]["hand_in_front_share"] <= max(fronts)
+    assert r["motion"]["real"]["seconds"] == pytest.approx(25.93 + 10.85 + 10.41 + 67.6, abs=0.1)
     written = json.loads((tmp_path / "out" / "real_speech.json").read_text())
     assert written["checks"] == r["checks"]
     assert "| librivox | real |" in (tmp_path / "out" / "real_speech.md").read_text()

@@ -38,13 +38,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_evaluate_gesture)
 
     p = esub.add_parser("real", help="real recorded speech: perception, trust and motion beside held-out corpus voices",
-                        description="Generate for real read speech (Debian's pocketsphinx-testdata) and for the "
+                        description="Generate for real read speech (Debian's pocketsphinx-testdata and "
+                        "asterisk-core-sounds-en-g722) and for the "
                         "held-out split's takes of the same emotion; report the emotion heard per window, the "
                         "windows --emotion auto trusts, and where the hands work, with pass/fail checks.")
     p.add_argument("--model", type=Path, help="gesture model run folder or JSON (default: the bundled model)")
     p.add_argument("--data", required=True, type=Path, help="windows cache whose split gives the reference takes")
     p.add_argument("--split", default="test", help="reference split (default test)")
-    p.add_argument("--real", type=Path, help="folder of the real recordings (default: pocketsphinx-testdata's)")
+    p.add_argument("--real", type=Path, help="one folder holding every real recording's clips (default: each "
+                   "in its Debian package's folder)")
     p.add_argument("--seeds", type=int, default=4, help="sampling seeds pooled for the motion (default 4)")
     p.add_argument("--out", required=True, type=Path, help="output folder (real_speech.json, real_speech.md)")
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")

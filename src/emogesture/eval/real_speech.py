@@ -10,7 +10,8 @@ far apart. The report reads, per recording and pooled:
   (trust 1: within the calibrated range of both the emotion and the voice);
 - **motion**, generated as ``emogesture generate`` does by default (``--emotion auto``, 4 seam
   candidates), over several sampling seeds: :func:`~emogesture.eval.motion_stats.motion_statistics`,
-  above all the share of frames with a hand in front of the chest and the wrists' median distance.
+  above all the share of frames with a hand in front of the chest and the wrists' median distance (pooled,
+  and for each recording).
 
 Checks (each can fail): heard as its emotion in at least :data:`HEARD_SHARE` of the windows; trusted in
 at least :data:`TRUSTED_SHARE`; the hand-in-front share within :data:`FRONT_SHARE_TOLERANCE` and the
@@ -80,8 +81,11 @@ def real_speech_report(pipe: GesturePipeline, recordings: dict[str, tuple[np.nda
         if emotion not in EMOTIONS:
             raise ValueError(f"{name}: unknown emotion {emotion!r}")
         row, encoded = _perception(pipe, wave, emotion, name)
-        out[group][name] = row | {"emotion": emotion}
-        motion[group] += _motion(pipe, wave, encoded, seeds)
+        sequences = _motion(pipe, wave, encoded, seeds)
+        own = motion_statistics(sequences)
+        out[group][name] = row | {"emotion": emotion, "hand_in_front_share": own["hand_in_front_share"],
+                                  "wrist_distance_median": own["wrist_distance_median"]}
+        motion[group] += sequences
     out["pooled"] = {g: _pooled(out[g]) for g in ("real", "reference")}
     out["motion"] = {g: motion_statistics(motion[g]) for g in ("real", "reference")}
     out["checks"] = real_speech_checks(out)
@@ -111,17 +115,20 @@ def real_speech_markdown(r: dict, title: str = "Real speech") -> str:
     lines = [f"# {title}", "", r.get("header", ""), "", "| check | value | bar | |", "|---|---|---|---|"]
     for name, c in r["checks"].items():
         lines.append(f"| {name} | {c['value']:.3f} | {c['bar']} | {'pass' if c['pass'] else 'FAIL'} |")
-    lines += ["", "| recording | group | seconds | windows | heard (--emotion own) | as its emotion | trusted by auto |",
-              "|---|---|---|---|---|---|---|"]
+    lines += ["", "| recording | group | seconds | windows | heard (--emotion own) | as its emotion | trusted by auto | "
+              "a hand in front | wrists apart (m) |", "|---|---|---|---|---|---|---|---|---|"]
     for group in ("real", "reference"):
         for name, row in r[group].items():
             heard = ", ".join(f"{k} {v}" for k, v in sorted(row["heard_counts"].items(), key=lambda kv: -kv[1]))
             trusted = "n/a" if row["trusted"] is None else f"{np.mean(row['trusted']):.0%}"
+            front = f"{row['hand_in_front_share']:.0%}" if "hand_in_front_share" in row else ""
+            apart = f"{row['wrist_distance_median']:.2f}" if "wrist_distance_median" in row else ""
             lines.append(f"| {name} | {group} | {row['seconds']:.1f} | {row['windows']} | {heard} | "
-                         f"{np.mean(row['heard_as_emotion']):.0%} | {trusted} |")
+                         f"{np.mean(row['heard_as_emotion']):.0%} | {trusted} | {front} | {apart} |")
     for group in ("real", "reference"):
-        p = r["pooled"][group]
-        lines.append(f"| **pooled** | {group} | | {p['windows']} | | {p['heard_share']:.0%} | {p['trusted_share']:.0%} |")
+        p, m = r["pooled"][group], r["motion"][group]
+        lines.append(f"| **pooled** | {group} | | {p['windows']} | | {p['heard_share']:.0%} | {p['trusted_share']:.0%} | "
+                     f"{m['hand_in_front_share']:.0%} | {m['wrist_distance_median']:.2f} |")
     m = r["motion"]
     lines += ["", f"Motion generated with `--emotion auto`, seeds {', '.join(map(str, r['seeds']))}:", "",
               "| statistic | real | reference |", "|---|---|---|"]
@@ -163,7 +170,7 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
 
     from emogesture.checkpoints import split_use, write_text_atomic
     from emogesture.data.cache import open_cache
-    from emogesture.data.real_speech import POCKETSPHINX_TESTDATA, load_real_recording, real_recordings
+    from emogesture.data.real_speech import load_real_recording, real_recordings
     from emogesture.errors import EmogestureError, OutputExistsError
 
     out_dir = Path(out_dir)
@@ -173,15 +180,16 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
             raise OutputExistsError(p)
     if seeds < 1:
         raise EmogestureError(f"--seeds {seeds}: must be at least 1")
-    root = Path(real_root) if real_root is not None else POCKETSPHINX_TESTDATA
-    recordings = {r.name: (load_real_recording(r, root), r.emotion) for r in real_recordings(root)}
+    found = real_recordings(real_root)
+    recordings = {r.name: (load_real_recording(r, real_root), r.emotion) for r in found}
     pipe = GesturePipeline.from_run(model)
     use = split_use(split, {"gesture": pipe.loaded, "speech": pipe.speech.loaded})
     reference = reference_recordings(open_cache(cache_dir), split, {e for _, e in recordings.values()})
     result = real_speech_report(pipe, recordings, reference, list(range(seeds)), progress)
     held = "held out (no part trained or calibrated on it)" if use["held_out"] else \
         f"not held out: calibrated on it ({', '.join(use['calibrated_on_it'])})"
-    result["header"] = (f"Real recordings ({root}) against the {split} split's takes of the same emotion: {held}; "
+    folders = [str(real_root)] if real_root is not None else list(dict.fromkeys(str(r.folder) for r in found))
+    result["header"] = (f"Real recordings ({', '.join(folders)}) against the {split} split's takes of the same emotion: {held}; "
                         f"model {pipe.loaded.path}.")
     result["split_use"] = use
     result["model"] = str(pipe.loaded.path)
