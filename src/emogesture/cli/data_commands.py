@@ -24,6 +24,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--emotion-prosody-scale", type=float, default=1.5,
                    help="strength of the emotions' speech prosody (default 1.5; 1 = the factor table, as in "
                    "corpora built before this default; 0 = every emotion sounds neutral)")
+    p.add_argument("--speaker-prosody-scale", type=float, default=1.0,
+                   help="spread of the speakers' own pitch range, rate, loudness and tilt (default 1, the factor "
+                   "table's; larger: speakers as lively or as flat as some emotions make a voice)")
     p.add_argument("--resume", action="store_true",
                    help="continue or re-check an existing corpus in --out instead of refusing")
     p.add_argument("--overwrite", action="store_true",
@@ -56,6 +59,7 @@ def run_corpus(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         emotion_prosody_scale=args.emotion_prosody_scale,
+        speaker_prosody_scale=args.speaker_prosody_scale,
     )
     summary = build_corpus(args.out, config, progress=not args.quiet, resume=args.resume, overwrite=args.overwrite)
     print(summary.format())

@@ -64,6 +64,10 @@ class CorpusConfig:
     #: default 1.5 makes the emotion audible on held-out texts (at 1, hand-made prosody features
     #: classify it at 0.82-0.85; experiments/README.md); corpora built before it were at 1.
     emotion_prosody_scale: float = 1.5
+    #: Spread of the speakers' own speaking style (``speaking_style``: pitch range, rate, loudness and
+    #: tilt, not the voice's pitch): 1 = the factor table's; larger gives speakers as lively or as flat,
+    #: as fast or as slow as some emotions make a voice, as real speakers are.
+    speaker_prosody_scale: float = 1.0
 
     def validate(self) -> None:
         """Raise ConfigError on an impossible setting."""
@@ -78,6 +82,8 @@ class CorpusConfig:
             raise ConfigError(f"workers must be >= 1, got {self.workers}")
         if not 0.0 <= self.emotion_prosody_scale <= 3.0:
             raise ConfigError(f"emotion_prosody_scale must be 0-3, got {self.emotion_prosody_scale}")
+        if not 0.0 <= self.speaker_prosody_scale <= 4.0:
+            raise ConfigError(f"speaker_prosody_scale must be 0-4, got {self.speaker_prosody_scale}")
         if not self.engines or set(self.engines) - set(ENGINES):
             raise ConfigError(f"engines must be a non-empty subset of {ENGINES}, got {self.engines}")
 
@@ -88,6 +94,8 @@ class CorpusConfig:
         d["engines"] = list(self.engines)
         if self.emotion_prosody_scale == 1.0:  # corpora built at 1 before the setting existed keep their identity
             d.pop("emotion_prosody_scale")
+        if self.speaker_prosody_scale == 1.0:  # nor do corpora built before this setting existed
+            d.pop("speaker_prosody_scale")
         return d
 
 
@@ -122,6 +130,8 @@ def _differences(found, wanted: dict) -> str:
     here = dict(wanted["config"], version=wanted["version"])
     there.setdefault("emotion_prosody_scale", 1.0)  # older markers omit the setting at 1
     here.setdefault("emotion_prosody_scale", 1.0)
+    there.setdefault("speaker_prosody_scale", 1.0)
+    here.setdefault("speaker_prosody_scale", 1.0)
     keys = sorted(k for k in set(there) | set(here) if there.get(k) != here.get(k))
     return ", ".join(f"{k}: {there.get(k)} there, {here.get(k)} here" for k in keys) or "same settings, other format"
 
@@ -134,7 +144,8 @@ def plan_takes(config: CorpusConfig) -> tuple[list[TakePlan], dict[str, str]]:
         for emo, (lo, _) in enumerate(EMOTION_TAKE_RANGES):
             for i in range(n):
                 plan = TakePlan(spk, lo + i, emo, i, config.seed, float(config.min_take_seconds),
-                                tuple(config.engines), float(config.emotion_prosody_scale))
+                                tuple(config.engines), float(config.emotion_prosody_scale),
+                                float(config.speaker_prosody_scale))
                 plans.append(plan)
                 splits[plan.name] = text_split(i, n)
     return plans, splits
