@@ -17,6 +17,7 @@ import numpy as np
 from emogesture.bundle import write_checksums
 from emogesture.checkpoints import write_text_atomic
 from emogesture.data.synthetic.corpus import CORPUS_VERSION
+from emogesture.eval.real_speech import heard_text
 from emogesture.pipeline.generate import HOP_SECONDS
 
 REBUILD = "make model   # = bash experiments/bundled_model.sh (resumes when re-run)"
@@ -102,8 +103,7 @@ def real_rows(real: dict) -> str:
 def real_recording_text(real: dict) -> str:
     """Each real recording's perception: what it is heard as, and how many of its windows `auto` trusts."""
     def one(name: str, r: dict) -> str:
-        heard = ", ".join(f"{k} {n}" for k, n in sorted(r["heard_counts"].items(), key=lambda kv: -kv[1]))
-        return f"{name} heard as {heard}, {sum(r['trusted'] or [])} of {r['windows']} windows trusted"
+        return f"{name} heard as {heard_text(r['heard_counts'])}, {sum(r['trusted'] or [])} of {r['windows']} windows trusted"
 
     return "; ".join(one(name, r) for name, r in real["real"].items())
 
@@ -203,7 +203,7 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     rhythm_text = rhythm_paragraph(rows, gesture["checks"])
     gesture_steps = json.loads((bundle / "gesture.json").read_text())["extra"]["step"]
     heard = Counter(k for r in real["real"].values() for k in r["heard"])
-    heard_real = ", ".join(f"{k} {n}" for k, n in heard.most_common()) + f" of {sum(heard.values())} windows"
+    heard_real = heard_text(heard) + f" of {sum(heard.values())} windows"
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model

@@ -110,6 +110,11 @@ def real_speech_checks(r: dict) -> dict:
     return {k: {"value": float(v), "bar": bar, "pass": bool(ok)} for k, (v, bar, ok) in checks.items()}
 
 
+def heard_text(counts: dict[str, int]) -> str:
+    """``{"contempt": 3, "neutral": 1}`` -> ``"contempt 3, neutral 1"``, the most heard first."""
+    return ", ".join(f"{k} {n}" for k, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+
+
 def real_speech_markdown(r: dict, title: str = "Real speech") -> str:
     """The report as markdown: checks, per-recording perception, motion side by side."""
     lines = [f"# {title}", "", r.get("header", ""), "", "| check | value | bar | |", "|---|---|---|---|"]
@@ -119,7 +124,7 @@ def real_speech_markdown(r: dict, title: str = "Real speech") -> str:
               "a hand in front | wrists apart (m) |", "|---|---|---|---|---|---|---|---|---|"]
     for group in ("real", "reference"):
         for name, row in r[group].items():
-            heard = ", ".join(f"{k} {v}" for k, v in sorted(row["heard_counts"].items(), key=lambda kv: -kv[1]))
+            heard = heard_text(row["heard_counts"])
             trusted = "n/a" if row["trusted"] is None else f"{np.mean(row['trusted']):.0%}"
             front = f"{row['hand_in_front_share']:.0%}" if "hand_in_front_share" in row else ""
             apart = f"{row['wrist_distance_median']:.2f}" if "wrist_distance_median" in row else ""

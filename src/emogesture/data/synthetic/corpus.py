@@ -50,6 +50,10 @@ MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"
 
 
+#: Settings added after corpora had been built at 1: a marker without one was built at 1.
+SCALES_ADDED_LATER = ("emotion_prosody_scale", "speaker_prosody_scale")
+
+
 @dataclass
 class CorpusConfig:
     """What to generate. ``workers`` only changes speed, never the bytes written."""
@@ -92,10 +96,9 @@ class CorpusConfig:
         d = asdict(self)
         d.pop("workers")
         d["engines"] = list(self.engines)
-        if self.emotion_prosody_scale == 1.0:  # corpora built at 1 before the setting existed keep their identity
-            d.pop("emotion_prosody_scale")
-        if self.speaker_prosody_scale == 1.0:  # nor do corpora built before this setting existed
-            d.pop("speaker_prosody_scale")
+        for key in SCALES_ADDED_LATER:  # corpora built at 1 before the setting existed keep their identity
+            if d[key] == 1.0:
+                d.pop(key)
         return d
 
 
@@ -128,10 +131,9 @@ def _differences(found, wanted: dict) -> str:
         return "unreadable marker"
     there = dict(found["config"], version=found.get("version"))
     here = dict(wanted["config"], version=wanted["version"])
-    there.setdefault("emotion_prosody_scale", 1.0)  # older markers omit the setting at 1
-    here.setdefault("emotion_prosody_scale", 1.0)
-    there.setdefault("speaker_prosody_scale", 1.0)
-    here.setdefault("speaker_prosody_scale", 1.0)
+    for key in SCALES_ADDED_LATER:  # older markers omit the setting at 1
+        there.setdefault(key, 1.0)
+        here.setdefault(key, 1.0)
     keys = sorted(k for k in set(there) | set(here) if there.get(k) != here.get(k))
     return ", ".join(f"{k}: {there.get(k)} there, {here.get(k)} here" for k in keys) or "same settings, other format"
 
