@@ -1,0 +1,61 @@
+# The bundled model's recipe (sourced, from the repository root, after common.sh): `train_bundle RUN CACHE`
+# trains, calibrates and bundles a model from a windows cache into RUN (RUN/bundle: float16 weights, config
+# and statistics in JSON, SHA256SUMS), every step resumed when re-run (finished trainings are not redone),
+# each training's wall time appended to RUN/times.txt. bundled_model.sh runs it on the experiments' corpus
+# and ships the result; speaker_spread.sh runs it on a corpus with a wider speaking style.
+#   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
+#      recording conditions) on the train texts of the train speakers only, so that the val texts and
+#      voices stay unseen for the calibrations below and the test texts and voices for the model card;
+#      then trained on from there for 700 steps (lr 5e-4) with three quarters of its windows augmented,
+#      voices moved by up to 6 semitones and more level changes (`speech_tuned`, the one used below);
+#   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
+#   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
+#   4. the speech model's emotion perception (class means on train, trust threshold on val), and the
+#      gesture model's fallback style for unfamiliar voices (the training speaker whose style gives its
+#      typical motion on the val split's neutral windows);
+#   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
+#      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
+
+timed() {  # times.txt name command... : runs a training step and appends its wall time to times.txt
+    local times=$1 name=$2 start
+    shift 2
+    start=$(date +%s)
+    "$@"
+    echo "$name: $(( $(date +%s) - start )) s" >> "$times"
+}
+
+train_bundle() {  # RUN CACHE
+    local run=$1 cache=$2 todo=() pids=() threads model pid speech
+    mkdir -p "$run"
+    # the speech model and the extractor side by side, one thread each (two for one left alone); the speech
+    # model's windows are augmented in 2 data workers beside its one training thread (the same draws)
+    grep -qs '"step": 1300' "$run/speech/model.json" || todo+=(speech)
+    grep -qs '"step": 600' "$run/extractor/model.json" || todo+=(extractor)
+    threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
+    for model in "${todo[@]}"; do
+        if [ "$model" = speech ]; then
+            timed "$run/times.txt" speech $EG train speech --data "$cache" --out "$run/speech" --losses adversarial \
+                --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 --set num_workers=2 --quiet &
+        else
+            OMP_NUM_THREADS=$threads timed "$run/times.txt" extractor $EG train extractor --data "$cache" \
+                --out "$run/extractor" --steps 600 --checkpoint-every 100 --quiet &
+        fi
+        pids+=($!)
+    done
+    for pid in "${pids[@]}"; do wait "$pid"; done
+    speech=$run/speech_tuned
+    grep -qs '"step": 700' "$speech/model.json" || timed "$run/times.txt" speech_tuned $EG train speech \
+        --data "$cache" --init-from "$run/speech" --out "$speech" --losses adversarial --steps 700 \
+        --checkpoint-every 100 --set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 \
+        --set wave.loudness=0.6 --set lr=5e-4 --set lr_decay_start=100 --set num_workers=2 --quiet
+    grep -qs '"step": 2400' "$run/gesture/model.json" || timed "$run/times.txt" gesture $EG train gesture \
+        --data "$cache" --speech "$speech" --out "$run/gesture" --steps 2400 --checkpoint-every 200 --quiet
+    # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
+    # (val) on a copy of the gesture model; 5. the bundle
+    [ -f "$run/speech_calibrated/model.json" ] || $EG calibrate speech --model "$speech" --data "$cache" \
+        --out "$run/speech_calibrated"
+    [ -f "$run/gesture_styled/model.json" ] || $EG calibrate style --model "$run/gesture" --data "$cache" \
+        --out "$run/gesture_styled"
+    $EG bundle --speech "$run/speech_calibrated" --gesture "$run/gesture_styled" --extractor "$run/extractor" \
+        --out "$run/bundle" --overwrite "${GENERATION[@]}"
+}
