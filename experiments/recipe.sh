@@ -24,6 +24,12 @@ timed() {  # times.txt name command... : runs a training step and appends its wa
     echo "$name: $(( $(date +%s) - start )) s" >> "$times"
 }
 
+train_gesture() {  # OUT CACHE SPEECH TIMES NAME : the recipe's gesture model (2400 steps), unless OUT has it
+    local out=$1 cache=$2 speech=$3 times=$4 name=$5
+    grep -qs '"step": 2400' "$out/model.json" || timed "$times" "$name" $EG train gesture --data "$cache" \
+        --speech "$speech" --out "$out" --steps 2400 --checkpoint-every 200 --quiet
+}
+
 train_bundle() {  # RUN CACHE
     local run=$1 cache=$2 todo=() pids=() threads model pid speech
     mkdir -p "$run"
@@ -48,8 +54,7 @@ train_bundle() {  # RUN CACHE
         --data "$cache" --init-from "$run/speech" --out "$speech" --losses adversarial --steps 700 \
         --checkpoint-every 100 --set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 \
         --set wave.loudness=0.6 --set lr=5e-4 --set lr_decay_start=100 --set num_workers=2 --quiet
-    grep -qs '"step": 2400' "$run/gesture/model.json" || timed "$run/times.txt" gesture $EG train gesture \
-        --data "$cache" --speech "$speech" --out "$run/gesture" --steps 2400 --checkpoint-every 200 --quiet
+    train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
     [ -f "$run/speech_calibrated/model.json" ] || $EG calibrate speech --model "$speech" --data "$cache" \

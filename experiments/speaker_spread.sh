@@ -26,13 +26,9 @@ mkdir -p "$REPORT"
 $EG corpus --out "$WIDE_CORPUS" --speakers 30 --speaker-prosody-scale 2.5 --resume --quiet
 $EG prepare "$WIDE_CORPUS" --out "$WIDE_CACHE" --set split_source=csv+actor --quiet
 train_bundle "$RUN" "$WIDE_CACHE"
-grep -qs '"step": 2400' "$RUN/gesture_shipped_speech/model.json" || timed "$RUN/times.txt" gesture_shipped_speech \
-    $EG train gesture --data "$WIDE_CACHE" --speech "$SHIPPED/speech.json" --out "$RUN/gesture_shipped_speech" \
-    --steps 2400 --checkpoint-every 200 --quiet
+train_gesture "$RUN/gesture_shipped_speech" "$WIDE_CACHE" "$SHIPPED/speech.json" "$RUN/times.txt" gesture_shipped_speech
 # the control: the same gesture training on the shipped corpus with the shipped speech model
-grep -qs '"step": 2400' "$RUN/gesture_control/model.json" || timed "$RUN/times.txt" gesture_control \
-    $EG train gesture --data "$CACHE" --speech "$SHIPPED/speech.json" --out "$RUN/gesture_control" \
-    --steps 2400 --checkpoint-every 200 --quiet
+train_gesture "$RUN/gesture_control" "$CACHE" "$SHIPPED/speech.json" "$RUN/times.txt" gesture_control
 cp "$RUN/times.txt" "$REPORT/training_time.txt"
 
 $EG evaluate real --data "$WIDE_CACHE" --split val --model "$RUN/bundle/gesture.json" --out "$REPORT/real_candidate" \
@@ -43,7 +39,6 @@ $EG evaluate real --data "$CACHE" --split val --model "$SHIPPED/gesture.json" --
 $EG evaluate gesture --data "$WIDE_CACHE" --extractor "$RUN/extractor" --split val --out "$REPORT/gesture" \
     --overwrite --long-audio 0 --model "candidate=$RUN/bundle/gesture.json" --model "shipped=$SHIPPED/gesture.json" \
     --model "wide_corpus_shipped_speech=$RUN/gesture_shipped_speech"
-rm -f "$REPORT"/gesture/*.png  # the confusion plots stay out of the repository; the tables hold the numbers
 $EG evaluate gesture --data "$CACHE" --extractor "$SHIPPED/extractor.json" --split val --out "$REPORT/gesture_control" \
     --overwrite --long-audio 0 --model "control=$RUN/gesture_control" --model "shipped=$SHIPPED/gesture.json"
-rm -f "$REPORT"/gesture_control/*.png
+rm -f "$REPORT"/gesture*/*.png  # the confusion plots stay out of the repository; the tables hold the numbers
