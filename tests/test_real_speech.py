@@ -74,3 +74,17 @@ def test_report_of_the_bundled_model(tmp_path):
     out = subprocess.run(cli("evaluate", "real", "--data", tmp_path / "cache", "--out", tmp_path / "o2",
                              "--seeds", "0"), capture_output=True, text=True)
     assert out.returncode != 0 and "--seeds 0" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_training_voices_are_other_people_and_missing_ones_are_a_one_line_error(tmp_path, monkeypatch):
+    from emogesture.data import real_speech
+    from emogesture.data.real_speech import TRAINING_VOICES, TrainingVoice, load_training_voice
+
+    check_folders = {r.folder for r in RECORDINGS}
+    assert not any(v.folder in check_folders or "Allison" in str(v.folder) for v in TRAINING_VOICES.values())
+    with pytest.raises(EmogestureError, match="unknown; known: fr_june"):
+        load_training_voice("es_allison")
+    monkeypatch.setitem(real_speech.TRAINING_VOICES, "fr_june",
+                        TrainingVoice("fr_june", "", tmp_path / "nowhere", "asterisk-core-sounds-fr-g722"))
+    with pytest.raises(InputFileError, match="install Debian's asterisk-core-sounds-fr-g722"):
+        load_training_voice("fr_june")

@@ -268,3 +268,29 @@ def test_init_from_a_trained_speech_model_starts_every_weight_there(tmp_path):
     config.model.latent_dim = 128
     with pytest.raises(ConfigError, match="another architecture.*latent_dim"):
         SpeechModule(to_dict(config))
+
+
+def test_real_voices_are_learned_as_neutral_and_recorded(cache, tmp_path, monkeypatch):
+    """``real_neutral``: each quadruple brings a window of a real voice, and the emotion classifier learns to
+    hear it as neutral; the same run without it does not."""
+    import torch
+
+    from emogesture.data.beat import EMOTIONS
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+    from emogesture.train import speech as speech_training
+    from emogesture.train.runs import RunOptions, train_speech
+
+    t = np.arange(16 * 16000) / 16000
+    hum = (0.2 * np.sign(np.sin(2 * np.pi * 180 * t)) * (np.sin(2 * np.pi * 3 * t) > 0)).astype(np.float32)
+    monkeypatch.setattr(speech_training, "load_training_voice", lambda name: hum)
+    neutral = {}
+    for weight in (0.0, 20.0):
+        run = tmp_path / f"w{weight:g}"
+        train_speech(cache, run, overrides=["batch_size=2", "samples_per_epoch=64", "real_neutral=[fr_june]",
+                                            f"real_neutral_weight={weight}"],
+                     options=RunOptions(steps=8, checkpoint_every=100, log_every=1))
+        config = json.loads((run / "run.json").read_text())["config"]
+        assert config["real_neutral"] == ["fr_june"] and config["real_neutral_weight"] == weight
+        enc, _ = SpeechLatentEncoder.from_run(run).encode(hum, 16000, 5.0)
+        neutral[weight] = float(torch.softmax(torch.from_numpy(enc.emotion_logits), 1)[:, EMOTIONS.index("neutral")].mean())
+    assert neutral[20.0] > neutral[0.0] + 0.2, neutral

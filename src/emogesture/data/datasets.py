@@ -38,15 +38,49 @@ class WaveWindowAugmenter:
         root = Path(cache.manifest["root"])
         self.waves = {take: load_audio(root / "wave16k" / f"{take}.wav")[0] for take in dict.fromkeys(windows.takes)}
 
+    @property
+    def window_samples(self) -> int:
+        """Waveform samples behind one fbank window."""
+        c = self.fbank_config
+        return (self.frames - 1) * c.frame_shift + c.frame_length
+
+    def window_fbank(self, wave: np.ndarray) -> np.ndarray:
+        """A window's waveform ``[window_samples]`` -> its fbank ``[frames, n_mels]`` float32, as the cache's."""
+        fb = normalise_fbank(normalise_recording(kaldi_fbank(wave, self.fbank_config), self.recording_norm),
+                             self.mean, self.std)
+        return fbank_window(fb, 0, self.frames).numpy()
+
     def __call__(self, j: int, rng: np.random.Generator) -> np.ndarray:
         """Window ``j``'s fbank ``[frames, n_mels]`` float32, its waveform augmented with draws from ``rng``."""
         c = self.fbank_config
         first = int(round(float(self.windows.start_s[j]) * c.sample_rate / c.frame_shift))  # the cache's first frame
         start = first * c.frame_shift
-        wave = self.waves[self.windows.takes[j]][start: start + (self.frames - 1) * c.frame_shift + c.frame_length]
+        wave = self.waves[self.windows.takes[j]][start: start + self.window_samples]
         wave, _ = augment_waveform(wave, rng, self.config)
-        fb = normalise_fbank(normalise_recording(kaldi_fbank(wave, c), self.recording_norm), self.mean, self.std)
-        return fbank_window(fb, 0, self.frames).numpy()
+        return self.window_fbank(wave)
+
+
+class RealNeutralWindows:
+    """Windows of real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES`),
+    made like the cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes a voice
+    and a start at random, and hears the window through augmented conditions with probability ``share``."""
+
+    def __init__(self, augmenter: WaveWindowAugmenter, waves: list[np.ndarray], share: float) -> None:
+        self.augmenter, self.share = augmenter, share
+        n = augmenter.window_samples
+        self.waves = [w for w in waves if len(w) > n]
+        if not self.waves:
+            raise ValueError("every real voice is shorter than one window")
+
+    def draw(self, rng: np.random.Generator) -> np.ndarray:
+        """One window's fbank ``[frames, n_mels]`` float32."""
+        n = self.augmenter.window_samples
+        wave = self.waves[int(rng.integers(len(self.waves)))]
+        start = int(rng.integers(len(wave) - n))
+        x = wave[start: start + n]
+        if rng.random() < self.share:
+            x, _ = augment_waveform(x, rng, self.augmenter.config)
+        return self.augmenter.window_fbank(x)
 
 
 class SpeechQuadrupleDataset(Dataset):
@@ -58,14 +92,16 @@ class SpeechQuadrupleDataset(Dataset):
     float32, ``emotion`` (int) and ``speaker [4]`` (class indices into ``speakers``). With an
     ``augmenter``, each window is also heard through augmented conditions with probability
     ``augment_share`` (the same generator decides): ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
-    clean windows (the reconstruction target).
+    clean windows (the reconstruction target). With ``real``, also one window of a real voice read without
+    acted emotion, ``real [1024, n_mels]`` (drawn after the quadruple, from the same generator).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
-                 augmenter: WaveWindowAugmenter | None = None, augment_share: float = 0.0) -> None:
+                 augmenter: WaveWindowAugmenter | None = None, augment_share: float = 0.0,
+                 real: RealNeutralWindows | None = None) -> None:
         if not 0.0 <= augment_share <= 1.0:
             raise ValueError(f"augment_share {augment_share} is not in [0, 1]")
-        self.augmenter, self.augment_share = augmenter, augment_share
+        self.augmenter, self.augment_share, self.real = augmenter, augment_share, real
         self.windows = windows
         self.index = QuadrupleIndex(windows)
         self.speaker_class = {s: i for i, s in enumerate(speakers)}
@@ -91,6 +127,8 @@ class SpeechQuadrupleDataset(Dataset):
                 if rng.random() < self.augment_share:
                     heard[k] = self.augmenter(j, rng)
             item["inputs"] = torch.from_numpy(heard)
+        if self.real is not None:
+            item["real"] = torch.from_numpy(self.real.draw(rng))
         return item
 
 

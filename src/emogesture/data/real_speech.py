@@ -15,6 +15,13 @@ package may be missing; :func:`real_recordings` returns what is installed.
 
 The clips of a group are joined in their order with 0.3 s of silence between them, so each group is one
 recording of a single speaker, as a user would give it.
+
+**Real voices for training** (:data:`TRAINING_VOICES`, :func:`load_training_voice`) are other people: the
+Asterisk prompts of other languages, each read by its own professional voice (CC BY-SA 3.0; Debian's
+``asterisk-core-sounds-{fr,it,ru}-g722``, about 25 min each, every clip of the voice joined). They are read
+without acted emotion, so a speech model may learn from them that a real voice reading evenly is neutral
+(``train speech --set real_neutral=...``). The Spanish prompts are left out: their voice is the English
+check recording's (Allison Smith), and a check voice is never trained on.
 """
 
 from __future__ import annotations
@@ -22,6 +29,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
+
+import shutil
+import subprocess
+import tempfile
 
 import numpy as np
 
@@ -33,6 +44,7 @@ POCKETSPHINX_TESTDATA = Path("/usr/share/pocketsphinx/test/data")
 #: Where Debian's ``asterisk-core-sounds-en-g722`` puts its English prompts.
 ASTERISK_PROMPTS = Path("/usr/share/asterisk/sounds/en_US_f_Allison")
 GAP_SECONDS = 0.3
+ASTERISK_SOUNDS = Path("/usr/share/asterisk/sounds")
 
 
 @dataclass(frozen=True)
@@ -99,3 +111,46 @@ def real_recordings(root: str | PathLike[str] | None = None) -> list[RealRecordi
         raise EmogestureError(f"{where}: no real speech recordings found; install them with "
                               f"`apt-get install {packages}`")
     return found
+
+
+@dataclass(frozen=True)
+class TrainingVoice:
+    """A real voice to train on: every ``.g722`` clip under ``folder`` (where Debian's ``package`` installs it)."""
+
+    name: str
+    description: str
+    folder: Path
+    package: str
+
+
+TRAINING_VOICES: dict[str, TrainingVoice] = {v.name: v for v in (
+    TrainingVoice("fr_june", "June Wallack, Canadian French telephone prompts", ASTERISK_SOUNDS / "fr_CA_f_June",
+                  "asterisk-core-sounds-fr-g722"),
+    TrainingVoice("it_carlo", "Carlo, Italian telephone prompts", ASTERISK_SOUNDS / "it_IT_m_Carlo",
+                  "asterisk-core-sounds-it-g722"),
+    TrainingVoice("ru_ivr", "a Russian telephone-prompt voice", ASTERISK_SOUNDS / "ru_RU_f_IvrvoiceRU",
+                  "asterisk-core-sounds-ru-g722"),
+)}
+
+
+def load_training_voice(name: str) -> np.ndarray:
+    """Every clip of training voice ``name`` (:data:`TRAINING_VOICES`) in path order, decoded by one ffmpeg
+    run and joined -> a 16-kHz waveform ``[N]`` float32."""
+    if name not in TRAINING_VOICES:
+        raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
+    voice = TRAINING_VOICES[name]
+    clips = sorted(voice.folder.rglob("*.g722")) if voice.folder.is_dir() else []
+    if not clips:
+        raise InputFileError(voice.folder, f"no .g722 clips; install Debian's {voice.package}")
+    if shutil.which("ffmpeg") is None:
+        raise EmogestureError(f"real voice {name}: ffmpeg is needed to decode its clips")
+    with tempfile.TemporaryDirectory(prefix="emogesture-voice-") as tmp:
+        listing = Path(tmp) / "clips.txt"
+        listing.write_text("".join(f"file '{c}'\n" for c in clips), encoding="utf-8")
+        proc = subprocess.run(["ffmpeg", "-nostdin", "-v", "error", "-f", "concat", "-safe", "0", "-i", str(listing),
+                               "-ac", "1", "-ar", str(SAMPLE_RATE), "-f", "s16le", "-"], capture_output=True)
+    if proc.returncode != 0 or not proc.stdout:
+        raise EmogestureError(f"real voice {name}: ffmpeg could not decode {voice.folder}: "
+                              f"{proc.stderr.decode(errors='replace').strip()[-200:]}")
+    wave = np.frombuffer(proc.stdout, "<i2").astype(np.float32) / 32768.0
+    return wave - wave.mean()

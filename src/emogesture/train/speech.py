@@ -16,7 +16,8 @@ from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.config import changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
+from emogesture.data.datasets import RealNeutralWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
+from emogesture.data.real_speech import load_training_voice
 from emogesture.errors import ConfigError
 from emogesture.models.metadata import SpeechMetadata
 from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
@@ -52,6 +53,13 @@ class SpeechTrainConfig:
     #: The waveforms are read from the corpus the cache was prepared from. 0 = off.
     wave_augment: float = 0.0
     wave: WaveAugmentConfig = field(default_factory=WaveAugmentConfig)
+    #: Real voices read without acted emotion, by name (:data:`emogesture.data.real_speech.TRAINING_VOICES`;
+    #: empty: none, the corpus alone). Each quadruple brings one window of them, heard through the same
+    #: augmented conditions (``wave_augment``), and the emotion encoder's classifier learns to hear it as
+    #: neutral (cross-entropy times ``real_neutral_weight``, added to the losses): a real voice's delivery,
+    #: unlike every synthetic one, is not yet an emotion.
+    real_neutral: list[str] = field(default_factory=list)
+    real_neutral_weight: float = 1.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -88,7 +96,7 @@ class SpeechTrainConfig:
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
-                 wave: WaveAugmentConfig | None = None):
+                 wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = ()):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -96,9 +104,12 @@ class SpeechDataModule(L.LightningDataModule):
         self.train = concat_splits(self.cache, splits)
         self.speakers = sorted(set(self.train.speaker_id.tolist()))
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
-        augmenter = WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig()) if wave_augment > 0 else None
-        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, augmenter,
-                                              wave_augment)
+        augmenter = (WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig())
+                      if wave_augment > 0 or real_neutral else None)
+        real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment)
+                if real_neutral else None)
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
+                                              augmenter if wave_augment > 0 else None, wave_augment, real)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
@@ -149,10 +160,24 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
             emotion_inputs = flat.reshape(b, k, t, f).to(inputs.device)
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
                                emotion_fbank=emotion_inputs)
+        if "real" in batch and self.cfg.real_neutral_weight > 0:
+            losses["real_neutral"] = self.real_neutral_loss(batch["real"])
+            losses["total"] = losses["total"] + self.cfg.real_neutral_weight * losses["real_neutral"]
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
         return losses["total"]
+
+    def real_neutral_loss(self, real: torch.Tensor) -> torch.Tensor:
+        """Cross-entropy of the emotion classifier on real-voice windows ``[B, 1024, n_mels]`` toward neutral
+        (:attr:`SpeechTrainConfig.real_neutral`), through the same spectrogram augmentation as the corpus's."""
+        if self.cfg.augment:
+            g = step_generator(self.seed, self.global_step, self.global_rank, 2)
+            real = augment_fbank(real.cpu(), g, self.cfg.freq_mask, self.cfg.time_mask, self.cfg.noise_std,
+                                 self.cfg.max_shift).to(real.device)
+        logits = self.model.encode(real, parts=("emotion",)).emotion_logits
+        neutral = torch.full((len(real),), EMOTIONS.index("neutral"), dtype=torch.long, device=real.device)
+        return torch.nn.functional.cross_entropy(logits, neutral)
 
     def configure_optimizers(self):
         c = self.cfg
@@ -196,12 +221,14 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     """Data module, Lightning module and export function of one run."""
     if not 0.0 <= config.wave_augment <= 1.0:
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
+    if config.real_neutral_weight < 0:
+        raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}: must be >= 0")
     try:
         config.wave.validate()
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits, config.wave_augment, config.wave)
+                            config.train_splits, config.wave_augment, config.wave, config.real_neutral)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "

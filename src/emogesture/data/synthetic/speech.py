@@ -116,16 +116,21 @@ def _frame_rms(x: np.ndarray, hop: int = 160) -> np.ndarray:
     return np.sqrt(np.mean(x[: n * hop].reshape(n, hop) ** 2, axis=1) + 1e-20)
 
 
+def spectral_tilt(x: np.ndarray, tilt: float) -> np.ndarray:
+    """Vocal effort: ``x`` ``[N]`` (16 kHz) with ``tilt`` times its part above about 1 kHz added (negative:
+    removed, at most 0.9 of it; the part is ``x`` less its one-pole low-pass at 1 kHz)."""
+    a = np.exp(-2 * np.pi * 1000.0 / SAMPLE_RATE)
+    low = lfilter([1 - a], [1, -a], x)
+    return x + max(tilt, -0.9) * (x - low)
+
+
 def shape_audio(x: np.ndarray, prosody: Prosody, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Tilt, breathiness, tremolo, loudness and gain, soft limit, noise floor.
 
     Returns ``(audio [N] float32, clean [N] float32)``; ``clean`` lacks the noise floor.
     """
-    x = x - x.mean()
-    # Spectral tilt: add (or remove) the part above ~1 kHz (one-pole low-pass at 16 kHz).
+    x = spectral_tilt(x - x.mean(), prosody.tilt)
     a = np.exp(-2 * np.pi * 1000.0 / SAMPLE_RATE)
-    low = lfilter([1 - a], [1, -a], x)
-    x = x + max(prosody.tilt, -0.9) * (x - low)
     if prosody.breathiness > 0:  # aspiration: high-passed noise following the speech envelope
         env = lfilter([1 - a], [1, -a], np.abs(x))
         hiss = rng.standard_normal(len(x))
