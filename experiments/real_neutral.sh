@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Real voices read without acted emotion, taught as neutral: the bundled speech model trained on for 500
+# Real voices read without acted emotion, taught as neutral: a trained speech model (BASE; for the report, the
+# model bundled before this stage was added to the recipe, the second stage's output) trained on for 500
 # steps with the recipe's second-stage settings (recipe.sh), once with `--set real_neutral=[...]` (a window
 # of the Asterisk prompts in French, Italian and Russian, three professional voices, per quadruple, its
 # emotion classifier taught neutral) and once without (the control: the same extra steps), both calibrated
@@ -11,18 +12,18 @@
 #     model still hears the corpus's emotions in a real voice (not "every real voice is neutral").
 # Reports in experiments/reports/real_neutral/ (val only). About 40 min on 2 CPU cores; every step resumes.
 # Needs Debian's asterisk-core-sounds-{fr,it,ru}-g722 (`make setup` installs them).
-# Usage: experiments/real_neutral.sh
+# Usage: experiments/real_neutral.sh BASE_SPEECH_MODEL
 set -euo pipefail
+BASE=${1:?usage: experiments/real_neutral.sh BASE_SPEECH_MODEL}
 cd "$(dirname "$0")/.."
 source experiments/common.sh
+source experiments/recipe.sh
 RUN=$WORK/real_neutral
 REPORT=experiments/reports/real_neutral
-SHIPPED=src/emogesture/assets/model
 mkdir -p "$RUN" "$REPORT"
-# the recipe's second stage (recipe.sh), 500 steps from the shipped model; the two runs side by side
-STAGE=(--data "$CACHE" --init-from "$SHIPPED/speech.json" --losses adversarial --steps 500 --checkpoint-every 100
-       --set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
-       --set lr=5e-4 --set lr_decay_start=100 --set num_workers=1 --quiet)
+# the recipe's third stage (recipe.sh), 500 steps from BASE, with and without the real voices, side by side
+STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
+       --set num_workers=1 --quiet)
 train_one() {  # NAME [--set ...]
     local name=$1 start
     shift
@@ -31,7 +32,7 @@ train_one() {  # NAME [--set ...]
     OMP_NUM_THREADS=1 $EG train speech --out "$RUN/$name" "${STAGE[@]}" "$@"
     echo "$name: $(( $(date +%s) - start )) s (one thread, beside the other run)" >> "$RUN/times.txt"
 }
-train_one anchored --set "real_neutral=[fr_june, it_carlo, ru_ivr]" &
+train_one anchored --set "real_neutral=[$REAL_NEUTRAL]" &
 train_one control &
 wait
 for name in anchored control; do
@@ -39,8 +40,8 @@ for name in anchored control; do
         --out "$RUN/${name}_calibrated"
     .venv/bin/python experiments/perception_shift.py "$RUN/${name}_calibrated" "$CACHE" "$REPORT/perception_$name" val
 done
-.venv/bin/python experiments/perception_shift.py "$SHIPPED/speech.json" "$CACHE" "$REPORT/perception_shipped" val
-MODELS=(shipped="$SHIPPED/speech.json" control="$RUN/control_calibrated" anchored="$RUN/anchored_calibrated")
+.venv/bin/python experiments/perception_shift.py "$BASE" "$CACHE" "$REPORT/perception_base" val
+MODELS=(base="$BASE" control="$RUN/control_calibrated" anchored="$RUN/anchored_calibrated")
 .venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
 .venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
 cp "$RUN/times.txt" "$REPORT/training_time.txt"

@@ -88,3 +88,13 @@ def test_training_voices_are_other_people_and_missing_ones_are_a_one_line_error(
                         TrainingVoice("fr_june", "", tmp_path / "nowhere", "asterisk-core-sounds-fr-g722"))
     with pytest.raises(InputFileError, match="install Debian's asterisk-core-sounds-fr-g722"):
         load_training_voice("fr_june")
+
+
+def test_the_training_voices_are_whole():
+    from emogesture.data.real_speech import TRAINING_VOICES, load_training_voice
+
+    for name in TRAINING_VOICES:
+        wave = load_training_voice(name)
+        assert wave.dtype == np.float32 and 20 * 60 < len(wave) / 16000 < 30 * 60, name
+        frames = np.sqrt((wave[: len(wave) // 160 * 160].reshape(-1, 160) ** 2).mean(1))
+        assert np.quantile(frames, 0.9) > 0.02 and (frames < 0.1 * np.quantile(frames, 0.9)).mean() > 0.05, name
