@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
 # exports (its glTF importer needs python3-numpy); pocketsphinx-testdata and asterisk-core-sounds-en-g722 hold real
-# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 the real voices `make model` trains on; Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
+# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 real voices a speech model can learn from (experiments/real_neutral.sh); Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
 # driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \

@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
 # Real voices read without acted emotion, taught as neutral: a trained speech model (BASE; for the report, the
-# model bundled before this stage was added to the recipe, the second stage's output) trained on for 500
-# steps with the recipe's second-stage settings (recipe.sh), once with `--set real_neutral=[...]` (a window
+# bundled one, the recipe's second stage) trained on for 500 steps with that stage's settings (recipe.sh), once with `--set real_neutral=[...]` (a window
 # of the Asterisk prompts in French, Italian and Russian, three professional voices, per quadruple, its
-# emotion classifier taught neutral) and once without (the control: the same extra steps), both calibrated
-# on val; then, beside the shipped speech model:
+# emotion classifier taught neutral) and once without (the control: the same extra steps), then once with
+# the real windows' emotion latents also pulled toward the batch's neutral ones (`real_neutral_pull`), each
+# calibrated on val; then, beside BASE:
 #   - perception_shift.py on val (the val speakers' voices, never trained on, through changed recordings);
 #   - real_perception.py: the real recordings (never trained on: other speakers, one of them another genre)
 #     at three gains;
 #   - real_voice_emotions.py: the same recordings given each emotion's corpus prosody, to see that the
 #     model still hears the corpus's emotions in a real voice (not "every real voice is neutral").
-# Reports in experiments/reports/real_neutral/ (val only). About 40 min on 2 CPU cores; every step resumes.
+# Reports in experiments/reports/real_neutral/ (val only). About 75 min on 2 CPU cores; every step resumes.
 # Needs Debian's asterisk-core-sounds-{fr,it,ru}-g722 (`make setup` installs them).
 # Usage: experiments/real_neutral.sh BASE_SPEECH_MODEL
 set -euo pipefail
@@ -21,27 +21,30 @@ source experiments/recipe.sh
 RUN=$WORK/real_neutral
 REPORT=experiments/reports/real_neutral
 mkdir -p "$RUN" "$REPORT"
-# the recipe's third stage (recipe.sh), 500 steps from BASE, with and without the real voices, side by side
+# 500 steps more from BASE with the recipe's second-stage settings, with and without the real voices, side by side
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
        --set num_workers=1 --quiet)
-train_one() {  # NAME [--set ...]
-    local name=$1 start
-    shift
+train_one() {  # NAME THREADS [--set ...]
+    local name=$1 threads=$2 start
+    shift 2
     grep -qs '"step": 500' "$RUN/$name/model.json" && return
     start=$(date +%s)
-    OMP_NUM_THREADS=1 $EG train speech --out "$RUN/$name" "${STAGE[@]}" "$@"
-    echo "$name: $(( $(date +%s) - start )) s (one thread, beside the other run)" >> "$RUN/times.txt"
+    OMP_NUM_THREADS=$threads $EG train speech --out "$RUN/$name" "${STAGE[@]}" "$@"
+    echo "$name: $(( $(date +%s) - start )) s (OMP_NUM_THREADS=$threads)" >> "$RUN/times.txt"
 }
-train_one anchored --set "real_neutral=[$REAL_NEUTRAL]" &
-train_one control &
+train_one anchored 1 --set "real_neutral=[$REAL_NEUTRAL]" &
+train_one control 1 &
 wait
-for name in anchored control; do
+# the same with the real windows' emotion latents also pulled toward the batch's neutral latents, alone
+train_one anchored_pull 2 --set "real_neutral=[$REAL_NEUTRAL]" --set real_neutral_pull=1 --set num_workers=2
+for name in anchored control anchored_pull; do
     [ -f "$RUN/${name}_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/$name" --data "$CACHE" \
         --out "$RUN/${name}_calibrated"
     .venv/bin/python experiments/perception_shift.py "$RUN/${name}_calibrated" "$CACHE" "$REPORT/perception_$name" val
 done
 .venv/bin/python experiments/perception_shift.py "$BASE" "$CACHE" "$REPORT/perception_base" val
-MODELS=(base="$BASE" control="$RUN/control_calibrated" anchored="$RUN/anchored_calibrated")
+MODELS=(base="$BASE" control="$RUN/control_calibrated" anchored="$RUN/anchored_calibrated"
+        anchored_pull="$RUN/anchored_pull_calibrated")
 .venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
 .venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
 cp "$RUN/times.txt" "$REPORT/training_time.txt"

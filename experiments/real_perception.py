@@ -1,7 +1,8 @@
 """What speech models hear in real recorded speech, and whether the recording's level changes it.
 
 For each speech model (calibrated: ``emogesture calibrate speech``), every 10-s window (8-s hop) of the
-real read speech of :mod:`emogesture.data.real_speech` (Debian's pocketsphinx-testdata), played as
+real read speech of :mod:`emogesture.data.real_speech` (Debian's pocketsphinx-testdata and the Asterisk
+telephone prompts), played as
 recorded and 10 dB quieter and louder: the emotion the classifier hears (``--emotion own``), whether
 ``--emotion auto`` trusts the window, and the emotion / voice distances over their thresholds. Real read
 speech carries no acted emotion, so neutral is the right answer; a microphone's gain should not change it.
@@ -50,7 +51,8 @@ def main(out_dir: str, *models: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "real_perception.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = ["# Real read speech: what the speech models hear", "",
-             "Debian's pocketsphinx-testdata (LibriVox reader, card names, CMU utterances), every 10-s window "
+             "Debian's pocketsphinx-testdata (LibriVox reader, card names, CMU utterances) and the Asterisk "
+             "telephone prompts (a professional voice), every 10-s window "
              "(8-s hop); neutral is the right answer. Gain: the recordings played that much louder.", "",
              "| model | gain | windows heard as neutral | windows trusted by `auto` | heard |", "|---|---|---|---|---|"]
     for name, by_gain in result.items():

@@ -7,9 +7,7 @@
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
 #      then trained on from there for 700 steps (lr 5e-4) with three quarters of its windows augmented,
-#      voices moved by up to 6 semitones and more level changes (`speech_tuned`); then 500 steps more
-#      with the same settings and real voices read without acted emotion taught as neutral (`speech_real`,
-#      `--set real_neutral=...`: the Asterisk prompts in French, Italian and Russian; the one used below);
+#      voices moved by up to 6 semitones and more level changes (`speech_tuned`, the one used below);
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
 #   4. the speech model's emotion perception (class means on train, trust threshold on val), and the
@@ -18,10 +16,10 @@
 #   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
 #      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
 
-# the second and third speech stages' harder conditions and learning rate
+# the second speech stage's harder conditions and learning rate (real_neutral.sh trains on with them)
 SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
              --set lr=5e-4 --set lr_decay_start=100)
-# the real voices of the third stage (emogesture.data.real_speech.TRAINING_VOICES)
+# real voices read without acted emotion (emogesture.data.real_speech.TRAINING_VOICES; real_neutral.sh)
 REAL_NEUTRAL="fr_june, it_carlo, ru_ivr"
 
 timed() {  # times.txt name command... : runs a training step and appends its wall time to times.txt
@@ -57,13 +55,10 @@ train_bundle() {  # RUN CACHE
         pids+=($!)
     done
     for pid in "${pids[@]}"; do wait "$pid"; done
-    grep -qs '"step": 700' "$run/speech_tuned/model.json" || timed "$run/times.txt" speech_tuned $EG train speech \
-        --data "$cache" --init-from "$run/speech" --out "$run/speech_tuned" --losses adversarial --steps 700 \
+    speech=$run/speech_tuned
+    grep -qs '"step": 700' "$speech/model.json" || timed "$run/times.txt" speech_tuned $EG train speech \
+        --data "$cache" --init-from "$run/speech" --out "$speech" --losses adversarial --steps 700 \
         --checkpoint-every 100 "${SPEECH_HARD[@]}" --set num_workers=2 --quiet
-    speech=$run/speech_real
-    grep -qs '"step": 500' "$speech/model.json" || timed "$run/times.txt" speech_real $EG train speech \
-        --data "$cache" --init-from "$run/speech_tuned" --out "$speech" --losses adversarial --steps 500 \
-        --checkpoint-every 100 "${SPEECH_HARD[@]}" --set "real_neutral=[$REAL_NEUTRAL]" --set num_workers=2 --quiet
     train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle

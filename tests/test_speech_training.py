@@ -294,3 +294,25 @@ def test_real_voices_are_learned_as_neutral_and_recorded(cache, tmp_path, monkey
         enc, _ = SpeechLatentEncoder.from_run(run).encode(hum, 16000, 5.0)
         neutral[weight] = float(torch.softmax(torch.from_numpy(enc.emotion_logits), 1)[:, EMOTIONS.index("neutral")].mean())
     assert neutral[20.0] > neutral[0.0] + 0.2, neutral
+
+
+def test_the_real_windows_pull_toward_the_batch_neutral_latents_only_when_asked_and_present():
+    import torch
+
+    from emogesture.config import to_dict
+    from emogesture.data.beat import EMOTIONS
+    from emogesture.train.speech import SpeechModule, SpeechTrainConfig
+
+    config = SpeechTrainConfig.preset("tiny")
+    config.augment = False
+    g = torch.Generator().manual_seed(0)
+    real, inputs = torch.randn(2, 1024, 128, generator=g), torch.randn(3, 4, 1024, 128, generator=g)
+    neutral, anger = EMOTIONS.index("neutral"), EMOTIONS.index("anger")
+    off = SpeechModule(to_dict(config)).real_neutral_loss(real, inputs, torch.tensor([neutral, anger, anger]))
+    config.real_neutral_pull = 1.0
+    module = SpeechModule(to_dict(config))
+    ce, pull = module.real_neutral_loss(real, inputs, torch.tensor([neutral, anger, anger]))
+    assert float(off[1]) == 0.0 and float(pull) > 0.0 and float(ce) > 0.0
+    pull.backward()  # the pull trains the encoder that reads the real windows
+    assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in module.model.emotion_encoder.parameters())
+    assert float(module.real_neutral_loss(real, inputs, torch.tensor([anger, anger, anger]))[1]) == 0.0

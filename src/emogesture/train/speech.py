@@ -60,6 +60,10 @@ class SpeechTrainConfig:
     #: unlike every synthetic one, is not yet an emotion.
     real_neutral: list[str] = field(default_factory=list)
     real_neutral_weight: float = 1.0
+    #: Also pull the real windows' emotion latents toward the mean emotion latent of the batch's neutral
+    #: windows (squared distance over the batch's latent variance, times this weight; 0 = off): the
+    #: perception reads the latent's nearest emotion mean as well as the classifier.
+    real_neutral_pull: float = 0.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -160,24 +164,38 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
             emotion_inputs = flat.reshape(b, k, t, f).to(inputs.device)
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
                                emotion_fbank=emotion_inputs)
-        if "real" in batch and self.cfg.real_neutral_weight > 0:
-            losses["real_neutral"] = self.real_neutral_loss(batch["real"])
-            losses["total"] = losses["total"] + self.cfg.real_neutral_weight * losses["real_neutral"]
+        if "real" in batch and (self.cfg.real_neutral_weight > 0 or self.cfg.real_neutral_pull > 0):
+            ce, pull = self.real_neutral_loss(batch["real"], inputs, batch["emotion"])
+            losses["real_neutral"], losses["real_neutral_pull"] = ce, pull
+            losses["total"] = losses["total"] + self.cfg.real_neutral_weight * ce + self.cfg.real_neutral_pull * pull
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
         return losses["total"]
 
-    def real_neutral_loss(self, real: torch.Tensor) -> torch.Tensor:
-        """Cross-entropy of the emotion classifier on real-voice windows ``[B, 1024, n_mels]`` toward neutral
-        (:attr:`SpeechTrainConfig.real_neutral`), through the same spectrogram augmentation as the corpus's."""
+    def real_neutral_loss(self, real: torch.Tensor, inputs: torch.Tensor,
+                          emotion: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`), through the
+        same spectrogram augmentation as the corpus's: the emotion classifier's cross-entropy toward neutral,
+        and the squared distance of their emotion latents to the mean latent of the batch's neutral corpus
+        windows (``inputs [B, 4, 1024, n_mels]``, quadruple emotions ``[B]``; detached), over the corpus
+        windows' latent variance (0 when the batch has no neutral quadruple or the pull is off)."""
         if self.cfg.augment:
             g = step_generator(self.seed, self.global_step, self.global_rank, 2)
             real = augment_fbank(real.cpu(), g, self.cfg.freq_mask, self.cfg.time_mask, self.cfg.noise_std,
                                  self.cfg.max_shift).to(real.device)
-        logits = self.model.encode(real, parts=("emotion",)).emotion_logits
-        neutral = torch.full((len(real),), EMOTIONS.index("neutral"), dtype=torch.long, device=real.device)
-        return torch.nn.functional.cross_entropy(logits, neutral)
+        enc = self.model.encode(real, parts=("emotion",))
+        neutral = EMOTIONS.index("neutral")
+        target = torch.full((len(real),), neutral, dtype=torch.long, device=real.device)
+        ce = torch.nn.functional.cross_entropy(enc.emotion_logits, target)
+        pull = ce.new_zeros(())
+        chosen = emotion == neutral
+        if self.cfg.real_neutral_pull > 0 and chosen.any():
+            with torch.no_grad():
+                corpus = self.model.encode(inputs[chosen].flatten(0, 1), parts=("emotion",)).emotion
+            spread = corpus.var(0).mean() if len(corpus) > 1 else corpus.new_ones(())
+            pull = ((enc.emotion - corpus.mean(0)) ** 2).mean() / (spread + 1e-6)
+        return ce, pull
 
     def configure_optimizers(self):
         c = self.cfg
@@ -221,8 +239,9 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     """Data module, Lightning module and export function of one run."""
     if not 0.0 <= config.wave_augment <= 1.0:
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
-    if config.real_neutral_weight < 0:
-        raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}: must be >= 0")
+    if config.real_neutral_weight < 0 or config.real_neutral_pull < 0:
+        raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}, real_neutral_pull "
+                          f"{config.real_neutral_pull}: must be >= 0")
     try:
         config.wave.validate()
     except ValueError as err:
