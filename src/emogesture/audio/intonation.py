@@ -137,9 +137,7 @@ def reshape_pitch(x: np.ndarray, span: float = 1.0, semitones: float = 0.0,
         if i == len(marks) or (i > 0 and t - marks[i - 1] < marks[i] - t):
             i -= 1
         a = int(marks[i])
-        half = int(period[a]) if period[a] > 0 else HOP
-        if half <= 0:
-            half = HOP
+        half = int(period[a]) or HOP  # a grain two periods long, or two hops where unvoiced
         lo, hi = max(a - half, 0), min(a + half, len(x))
         grain = x[lo:hi] * np.hanning(2 * half)[lo - (a - half): hi - (a - half)]
         start = t - (a - lo)
