@@ -4,11 +4,12 @@ No emotion-labelled real speech can be had here, and a model that has learned to
 neutral would pass the real-speech checks without hearing anything. So each real recording of
 :mod:`emogesture.data.real_speech` (read without acted emotion) is given, by signal processing, the speech
 prosody the synthetic corpus gives each emotion (its factor table at the corpus's default emotion prosody
-scale): the pitch raised or lowered and its movements widened or narrowed (TD-PSOLA, the formants kept:
-:func:`emogesture.audio.intonation.reshape_pitch`), the tempo (WSOLA), the vocal effort (spectral tilt) and
-the level (clipped at full scale, as a recorder would). Breathiness and tremolo are left out. For each
-speech model: the share of the 10-s windows (5-s hop) heard as the emotion given, per emotion, and which
-emotion is heard instead. The neutral row is the recording as it was.
+scale), as :func:`emogesture.data.synthetic.speech.give_prosody` gives it: the pitch raised or lowered and
+its movements widened or narrowed (TD-PSOLA, the formants kept), the tempo (WSOLA), the vocal effort
+(spectral tilt), breath and tremolo, and the corpus's loudness for that emotion. For each speech model:
+the share of the 10-s windows (5-s hop) heard as the emotion given, per emotion, and which emotion is
+heard instead. The neutral row is the recording as it was. (Given without breath and tremolo, as this
+check first did, sadness, fear and disgust were heard as none of them by any model.)
 
 These are not real emotional voices (a real speaker's anger is more than a louder, brighter, faster
 voice), only the corpus's own cues carried by a real voice: a model that hears them there reads the cues it
@@ -26,32 +27,29 @@ from pathlib import Path
 
 import numpy as np
 
-from emogesture.audio.intonation import reshape_pitch
-from emogesture.audio.wave_augment import time_stretch
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.real_speech import load_real_recording, real_recordings
 from emogesture.data.synthetic.corpus import CorpusConfig
 from emogesture.data.synthetic.factors import EMOTION_FACTORS, scale_prosody
-from emogesture.data.synthetic.speech import spectral_tilt
+from emogesture.data.synthetic.speech import give_prosody
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 HOP_SECONDS = 5.0
 
 
-def with_emotion(wave: np.ndarray, emotion: str) -> np.ndarray:
-    """``wave`` ``[N]`` (16 kHz) given the corpus's speech prosody of ``emotion``; float32."""
-    p = scale_prosody(EMOTION_FACTORS[emotion].prosody, CorpusConfig().emotion_prosody_scale)
-    x = reshape_pitch(wave, span=p.pitch_range, semitones=p.pitch)
-    x = time_stretch(x, p.rate)
-    x = spectral_tilt(x, p.tilt) * 10 ** (p.gain_db / 20)
-    return np.clip(x, -1.0, 1.0).astype(np.float32)
+def with_emotion(wave: np.ndarray, emotion: str, seed: int) -> np.ndarray:
+    """``wave`` ``[N]`` (16 kHz) given the corpus's speech prosody of ``emotion`` (breath noise and tremolo
+    phase from ``seed``); float32."""
+    prosody = scale_prosody(EMOTION_FACTORS[emotion].prosody, CorpusConfig().emotion_prosody_scale)
+    return give_prosody(wave, prosody, np.random.default_rng(seed))
 
 
 def main(out_dir: str, *models: str) -> None:
     recordings = real_recordings()
     waves = {r.name: load_real_recording(r) for r in recordings}
-    given = {(name, e): with_emotion(w, e) if e != "neutral" else w for name, w in waves.items() for e in EMOTIONS}
+    given = {(name, e): with_emotion(w, e, k) if e != "neutral" else w
+             for name, w in waves.items() for k, e in enumerate(EMOTIONS)}
     result = {}
     for spec in models:
         name, path = spec.split("=", 1)

@@ -17,7 +17,14 @@ is trusted when its Mahalanobis distance to the nearest class mean lies within t
 val windows'. The real read
 speech of :mod:`emogesture.data.real_speech` is a check, never used for a choice.
 
-Usage: python experiments/voice_encoder_perception.py CACHE OUT_DIR [--every N] [--augment K]
+With ``--real-voices N`` the fit also takes, from each of the real training voices
+(:data:`emogesture.data.real_speech.TRAINING_VOICES`, other people than the checks'), N windows per
+emotion given that emotion's corpus prosody (:func:`emogesture.data.synthetic.speech.give_prosody`, the
+factor table plus a take's random deviation; neutral: only the deviation), labelled with it. The report
+then also reads the check recordings given each emotion's prosody (as ``real_voice_emotions.py`` does):
+the share heard as the emotion given.
+
+Usage: python experiments/voice_encoder_perception.py CACHE OUT_DIR [--every N] [--augment K] [--real-voices N]
 """
 
 from __future__ import annotations
@@ -39,7 +46,10 @@ from emogesture.audio.wave_augment import augment_waveform, recording_changes
 from emogesture.audio.windows import WINDOW_SECONDS, window_starts
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
-from emogesture.data.real_speech import RECORDINGS, load_real_recording
+from emogesture.data.real_speech import RECORDINGS, TRAINING_VOICES, load_real_recording, load_training_voice
+from emogesture.data.synthetic.corpus import CorpusConfig
+from emogesture.data.synthetic.factors import EMOTION_FACTORS, combine_prosody, draw_take_prosody, scale_prosody
+from emogesture.data.synthetic.speech import give_prosody
 
 PARTIAL_FRAMES, PARTIAL_RATE, MIN_COVERAGE = 160, 1.3, 0.75
 TARGET_DBFS = -30.0
@@ -105,6 +115,23 @@ def windows(wave: np.ndarray) -> list[np.ndarray]:
     return [wave[int(round(s * TARGET_SAMPLE_RATE)):][:n] for s in window_starts(len(wave) / TARGET_SAMPLE_RATE)]
 
 
+def real_voice_windows(model: SpeakerEncoder, per_emotion: int, rng: np.random.Generator):
+    """Embeddings ``[V * 8 * per_emotion, 256]`` and emotions of the real training voices' windows, each given
+    an emotion's corpus prosody plus a take's deviation (drawn from ``rng``)."""
+    n = int(WINDOW_SECONDS * TARGET_SAMPLE_RATE)
+    scale = CorpusConfig().emotion_prosody_scale
+    xs, ys = [], []
+    for voice in TRAINING_VOICES:
+        wave = load_training_voice(voice)
+        for k, emotion in enumerate(tqdm(EMOTIONS, desc=voice, leave=False)):
+            for _ in range(per_emotion):
+                start = int(rng.integers(len(wave) - 3 * n // 2))
+                prosody = combine_prosody(scale_prosody(EMOTION_FACTORS[emotion].prosody, scale), draw_take_prosody(rng))
+                xs.append(embed(model, give_prosody(wave[start: start + 3 * n // 2], prosody, rng)[:n].astype(np.float64)))
+                ys.append(k)
+    return np.array(xs), np.array(ys)
+
+
 def takes_of(cache, split: str, held_out_voices: bool) -> list[tuple[str, int]]:
     """(take, emotion) of a split: the train speakers' takes for train, else the voices never trained on."""
     train_speakers = set(cache.split("train").speaker_id.tolist())
@@ -124,6 +151,9 @@ def main() -> None:
     ap.add_argument("--augment", type=int, default=0,
                     help="also fit on this many copies of each train window through wave_augment's random "
                          "recording conditions (seeded; 0: clean windows only)")
+    ap.add_argument("--real-voices", type=int, default=0,
+                    help="also fit on this many windows per emotion of each real training voice, given that "
+                         "emotion's corpus prosody (0: none)")
     args = ap.parse_args()
     model = load_speaker_encoder()
     cache = open_cache(args.cache)
@@ -149,6 +179,9 @@ def main() -> None:
         raise SystemExit(f"{args.cache}: needs train takes of train speakers and val takes of voices never trained on "
                          "(prepare --set split_source=csv+actor)")
     x_train, y_train = encode(load(train), copies=args.augment)
+    if args.real_voices:
+        x_real, y_real = real_voice_windows(model, args.real_voices, np.random.default_rng(2))
+        x_train, y_train = np.concatenate([x_train, x_real]), np.concatenate([y_train, y_real])
     lda = LinearDiscriminantAnalysis(solver="lsqr", shrinkage="auto").fit(x_train, y_train)
     precision = np.linalg.inv(lda.covariance_)
 
@@ -172,15 +205,27 @@ def main() -> None:
         heard, dist = [EMOTIONS[k] for k in lda.predict(x)], distance(x)
         real[rec.name] = {"windows": len(x), "heard": heard, "trusted": (dist <= threshold).tolist(),
                           "distance_over_threshold": np.round(dist / threshold, 2).tolist()}
+    given = {}
+    if args.real_voices:
+        scale = CorpusConfig().emotion_prosody_scale
+        for k, emotion in enumerate(EMOTIONS):
+            x = np.array([embed(model, w) for i, rec in enumerate(RECORDINGS) if rec.folder.is_dir()
+                          for w in windows(give_prosody(load_real_recording(rec), scale_prosody(
+                              EMOTION_FACTORS[emotion].prosody, scale), np.random.default_rng([k, i])).astype(np.float64))])
+            given[emotion] = float(np.mean(lda.predict(x) == k))
     heard_all = [h for r in real.values() for h in r["heard"]]
     trusted_all = [t for r in real.values() for t in r["trusted"]]
     result = {"train_windows": len(y_train), "augmented_copies": args.augment, "val_takes": len(val),
               "trust_threshold": threshold, "rows": rows,
               "real": real, "real_heard_as_neutral": float(np.mean([h == "neutral" for h in heard_all])),
-              "real_trusted": float(np.mean(trusted_all))}
+              "real_trusted": float(np.mean(trusted_all)), "real_voices": args.real_voices,
+              "real_given_emotion_heard": given}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "voice_encoder_perception.json").write_text(json.dumps(result, indent=1) + "\n")
     augmented = f"; each window also through {args.augment} random recording conditions" if args.augment else ""
+    if args.real_voices:
+        augmented += (f"; and {args.real_voices} windows per emotion of each of the {len(TRAINING_VOICES)} real training "
+                      "voices, given that emotion's corpus prosody")
     lines = ["# Emotion read from a speaker encoder trained on real speech (val, voices never trained on)", "",
              f"Linear discriminant analysis on the embeddings of {len(y_train)} train windows (train texts, train "
              f"speakers{augmented}); val: {len(val)} takes of the val texts spoken by the val speakers. "
@@ -196,6 +241,12 @@ def main() -> None:
                      f"{', '.join(f'{d:.2f}' for d in r['distance_over_threshold'])} |")
     lines.append(f"| **all** | {len(heard_all)} | neutral {result['real_heard_as_neutral']:.0%} | "
                  f"{result['real_trusted']:.0%} | |")
+    if given:
+        lines += ["", "The real read speech given each emotion's corpus prosody (neutral: as given, level included), "
+                  "share heard as that emotion:", "", "| " + " | ".join(EMOTIONS) + " | mean of the seven |",
+                  "|" + "---|" * (len(EMOTIONS) + 1),
+                  "| " + " | ".join(f"{given[e]:.2f}" for e in EMOTIONS)
+                  + f" | {np.mean([given[e] for e in EMOTIONS if e != 'neutral']):.2f} |"]
     (args.out / "voice_encoder_perception.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -56,3 +56,21 @@ def test_reshape_pitch_widens_narrows_and_moves_the_pitch_with_the_duration_kept
     assert np.array_equal(reshape_pitch(noise, span=2.0), noise)  # nothing voiced to move
     with pytest.raises(ValueError, match="16000"):
         f0_track(x, 8000)
+
+
+def test_a_recorded_voice_given_a_prosody_is_raised_faster_and_louder():
+    """give_prosody: a recorded voice spoken with anger's cues as the corpus gives them."""
+    from emogesture.data.synthetic.factors import EMOTION_FACTORS, Prosody
+    from emogesture.data.synthetic.speech import give_prosody
+
+    x, _ = _sung(seconds=4.0)
+    rng = np.random.default_rng(0)
+    neutral = give_prosody(x, Prosody(), rng)
+    angry = give_prosody(x, EMOTION_FACTORS["anger"].prosody, rng)
+    faster = EMOTION_FACTORS["anger"].prosody.rate
+    assert len(neutral) == len(x) and len(angry) == pytest.approx(len(x) / faster, rel=0.01)
+    assert angry.dtype == np.float32
+    rise = 12 * np.log2(np.nanmedian(f0_track(angry)) / np.nanmedian(f0_track(neutral)))
+    assert rise == pytest.approx(EMOTION_FACTORS["anger"].prosody.pitch, abs=0.3)
+    louder = 20 * np.log10(np.abs(angry).max() / np.abs(neutral).max())
+    assert louder > 4.0

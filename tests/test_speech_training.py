@@ -296,7 +296,7 @@ def test_real_voices_are_learned_as_neutral_and_recorded(cache, tmp_path, monkey
     assert neutral[20.0] > neutral[0.0] + 0.2, neutral
 
 
-def test_the_real_windows_pull_toward_the_batch_neutral_latents_only_when_asked_and_present():
+def test_the_real_windows_pull_toward_the_batch_latents_of_their_emotion_only_when_asked_and_present():
     import torch
 
     from emogesture.config import to_dict
@@ -307,12 +307,33 @@ def test_the_real_windows_pull_toward_the_batch_neutral_latents_only_when_asked_
     config.augment = False
     g = torch.Generator().manual_seed(0)
     real, inputs = torch.randn(2, 1024, 128, generator=g), torch.randn(3, 4, 1024, 128, generator=g)
-    neutral, anger = EMOTIONS.index("neutral"), EMOTIONS.index("anger")
-    off = SpeechModule(to_dict(config)).real_neutral_loss(real, inputs, torch.tensor([neutral, anger, anger]))
+    neutral, anger, fear = EMOTIONS.index("neutral"), EMOTIONS.index("anger"), EMOTIONS.index("fear")
+    both_neutral = torch.tensor([neutral, neutral])
+    off = SpeechModule(to_dict(config)).real_neutral_loss(real, both_neutral, inputs, torch.tensor([neutral, anger, anger]))
     config.real_neutral_pull = 1.0
     module = SpeechModule(to_dict(config))
-    ce, pull = module.real_neutral_loss(real, inputs, torch.tensor([neutral, anger, anger]))
+    ce, pull = module.real_neutral_loss(real, both_neutral, inputs, torch.tensor([neutral, anger, anger]))
     assert float(off[1]) == 0.0 and float(pull) > 0.0 and float(ce) > 0.0
     pull.backward()  # the pull trains the encoder that reads the real windows
     assert any(p.grad is not None and p.grad.abs().sum() > 0 for p in module.model.emotion_encoder.parameters())
-    assert float(module.real_neutral_loss(real, inputs, torch.tensor([anger, anger, anger]))[1]) == 0.0
+    corpus = torch.tensor([anger, anger, anger])
+    assert float(module.real_neutral_loss(real, both_neutral, inputs, corpus)[1]) == 0.0  # no neutral in the batch
+    # a real window of anger is pulled toward the batch's anger windows, and only toward them
+    with torch.no_grad():
+        latents = module.model.encode(inputs.flatten(0, 1), parts=("emotion",)).emotion.reshape(3, 4, -1)
+        mine = module.model.encode(real[:1], parts=("emotion",)).emotion
+    _, pulled = module.real_neutral_loss(real[:1], torch.tensor([anger]), inputs, torch.tensor([fear, anger, fear]))
+    expected = ((mine - latents[1].mean(0)) ** 2).mean() / (latents[1].var(0).mean() + 1e-6)
+    assert float(pulled) == pytest.approx(float(expected), rel=1e-4)
+
+
+def test_real_voice_settings_out_of_range_are_one_line_errors(cache):
+    from emogesture.errors import ConfigError
+    from emogesture.train.speech import SpeechTrainConfig, build
+
+    for key, value, message in (("real_emotion_share", 1.5, "real_emotion_share 1.5: a share"),
+                                ("real_neutral_pull", -1.0, "must be >= 0")):
+        config = SpeechTrainConfig.preset("tiny")
+        setattr(config, key, value)
+        with pytest.raises(ConfigError, match=message):
+            build(config, cache, 0)

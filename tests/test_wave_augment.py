@@ -156,3 +156,33 @@ def test_real_neutral_windows_are_seeded_cache_like_windows(tmp_path):
     assert torch.equal(plain["inputs"], a["inputs"]) and "real" not in plain
     with pytest.raises(ValueError, match="shorter than one window"):
         RealNeutralWindows(augmenter, [np.zeros(100, np.float32)], share=0.0)
+
+
+def test_real_windows_given_the_corpus_emotions_carry_their_labels_and_cues(tmp_path):
+    """With ``emotion_share``, real windows come with an emotion, drawn from the item's generator, and carry
+    that emotion's cues (anger: louder than neutral); at 0 every window is neutral."""
+    from emogesture.data.beat import EMOTIONS
+    from emogesture.data.cache import open_cache
+    from emogesture.data.datasets import RealNeutralWindows, WaveWindowAugmenter
+    from emogesture.data.prepare import prepare
+
+    from helpers import make_root
+
+    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    cache = open_cache(tmp_path / "cache")
+    augmenter = WaveWindowAugmenter(cache, cache.split("train"), WaveAugmentConfig())
+    voices = [np.tile(_voice(2.0, 120.0), 12).astype(np.float32)]
+    plain = RealNeutralWindows(augmenter, voices, share=0.0)
+    assert {plain.draw(np.random.default_rng(i))[1] for i in range(6)} == {EMOTIONS.index("neutral")}
+    given = RealNeutralWindows(augmenter, voices, share=0.0, emotion_share=0.875)
+    draws = [given.draw(np.random.default_rng(i)) for i in range(40)]
+    assert len({e for _, e in draws}) >= 6  # the eight emotions alike
+    a, b = given.draw(np.random.default_rng(7)), given.draw(np.random.default_rng(7))
+    assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+    assert a[0].shape == plain.draw(np.random.default_rng(0))[0].shape
+    level = {emotion: float(np.mean([f.mean() for f, e in draws if e == EMOTIONS.index(emotion)]))
+             for emotion in ("neutral", "anger")}
+    assert level["anger"] > level["neutral"] + 0.1, level
+    with pytest.raises(ValueError, match="emotion_share"):
+        RealNeutralWindows(augmenter, voices, share=0.0, emotion_share=1.5)

@@ -10,7 +10,10 @@ from emogesture.audio import FbankConfig, fbank_window, kaldi_fbank, load_audio,
 from emogesture.audio.wave_augment import WaveAugmentConfig, augment_waveform
 from emogesture.config import from_dict
 from emogesture.data.cache import SplitWindows, WindowsCache
+from emogesture.data.beat import EMOTIONS
 from emogesture.data.quadruples import QuadrupleIndex
+from emogesture.data.synthetic.factors import EMOTION_FACTORS, combine_prosody, draw_take_prosody, scale_prosody
+from emogesture.data.synthetic.speech import give_prosody
 
 
 class WaveWindowAugmenter:
@@ -63,24 +66,49 @@ class WaveWindowAugmenter:
 class RealNeutralWindows:
     """Windows of real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES`),
     made like the cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes a voice
-    and a start at random, and hears the window through augmented conditions with probability ``share``."""
+    and a start at random, and hears the window through augmented conditions with probability ``share``.
 
-    def __init__(self, augmenter: WaveWindowAugmenter, waves: list[np.ndarray], share: float) -> None:
+    With ``emotion_share`` > 0 the voice is also given an emotion's speech prosody as the corpus gives it
+    (:func:`~emogesture.data.synthetic.speech.give_prosody`: the factor table at ``prosody_scale``, plus a
+    take's random deviation): a non-neutral emotion (uniform) with probability ``emotion_share``, else
+    neutral, so that the read voice is neutral and the same voice with anger's cues is anger, whatever the
+    voice; every window goes through the same processing, neutral ones too.
+    """
+
+    def __init__(self, augmenter: WaveWindowAugmenter, waves: list[np.ndarray], share: float,
+                 emotion_share: float = 0.0, prosody_scale: float = 1.5) -> None:
+        if not 0.0 <= emotion_share <= 1.0:
+            raise ValueError(f"emotion_share {emotion_share} is not in [0, 1]")
         self.augmenter, self.share = augmenter, share
-        n = augmenter.window_samples
+        self.emotion_share, self.prosody_scale = emotion_share, prosody_scale
+        n = int(augmenter.window_samples * self.longest_source)
         self.waves = [w for w in waves if len(w) > n]
         if not self.waves:
             raise ValueError("every real voice is shorter than one window")
 
-    def draw(self, rng: np.random.Generator) -> np.ndarray:
-        """One window's fbank ``[frames, n_mels]`` float32."""
+    @property
+    def longest_source(self) -> float:
+        """How many windows' worth of the recording one window may take (a faster tempo takes more)."""
+        return 1.5 if self.emotion_share > 0 else 1.0
+
+    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+        """One window's fbank ``[frames, n_mels]`` float32 and its emotion (an index into ``EMOTIONS``)."""
         n = self.augmenter.window_samples
         wave = self.waves[int(rng.integers(len(self.waves)))]
-        start = int(rng.integers(len(wave) - n))
-        x = wave[start: start + n]
+        take = int(n * self.longest_source)
+        start = int(rng.integers(len(wave) - take))
+        x = wave[start: start + take]
+        emotion = "neutral"
+        if self.emotion_share > 0:
+            if rng.random() < self.emotion_share:
+                emotion = [e for e in EMOTIONS if e != "neutral"][int(rng.integers(len(EMOTIONS) - 1))]
+            prosody = combine_prosody(scale_prosody(EMOTION_FACTORS[emotion].prosody, self.prosody_scale),
+                                      draw_take_prosody(rng))
+            x = give_prosody(x, prosody, rng)
+        x = x[:n]
         if rng.random() < self.share:
             x, _ = augment_waveform(x, rng, self.augmenter.config)
-        return self.augmenter.window_fbank(x)
+        return self.augmenter.window_fbank(x), EMOTIONS.index(emotion)
 
 
 class SpeechQuadrupleDataset(Dataset):
@@ -92,8 +120,9 @@ class SpeechQuadrupleDataset(Dataset):
     float32, ``emotion`` (int) and ``speaker [4]`` (class indices into ``speakers``). With an
     ``augmenter``, each window is also heard through augmented conditions with probability
     ``augment_share`` (the same generator decides): ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
-    clean windows (the reconstruction target). With ``real``, also one window of a real voice read without
-    acted emotion, ``real [1024, n_mels]`` (drawn after the quadruple, from the same generator).
+    clean windows (the reconstruction target). With ``real``, also one window of a real voice,
+    ``real [1024, n_mels]``, and its emotion ``real_emotion`` (int; drawn after the quadruple, from the same
+    generator).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
@@ -128,7 +157,8 @@ class SpeechQuadrupleDataset(Dataset):
                     heard[k] = self.augmenter(j, rng)
             item["inputs"] = torch.from_numpy(heard)
         if self.real is not None:
-            item["real"] = torch.from_numpy(self.real.draw(rng))
+            real, emotion = self.real.draw(rng)
+            item["real"], item["real_emotion"] = torch.from_numpy(real), torch.tensor(emotion)
         return item
 
 

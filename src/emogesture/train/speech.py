@@ -18,6 +18,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
 from emogesture.data.datasets import RealNeutralWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
 from emogesture.data.real_speech import load_training_voice
+from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.errors import ConfigError
 from emogesture.models.metadata import SpeechMetadata
 from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
@@ -64,6 +65,12 @@ class SpeechTrainConfig:
     #: windows (squared distance over the batch's latent variance, times this weight; 0 = off): the
     #: perception reads the latent's nearest emotion mean as well as the classifier.
     real_neutral_pull: float = 0.0
+    #: Share of the real windows given a non-neutral emotion's speech prosody as the corpus gives it (pitch
+    #: and its span, tempo, vocal effort, breath, loudness: the factor table at the corpus's scale, plus a
+    #: take's random deviation) and taught as that emotion; the others keep the voice's own delivery, through
+    #: the same processing, taught as neutral (0 = none processed: every real window as recorded, neutral).
+    #: The pull then goes toward the batch's windows of the real window's emotion.
+    real_emotion_share: float = 0.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -100,7 +107,8 @@ class SpeechTrainConfig:
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
-                 wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = ()):
+                 wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = (),
+                 real_emotion_share: float = 0.0):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -110,8 +118,9 @@ class SpeechDataModule(L.LightningDataModule):
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
         augmenter = (WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig())
                       if wave_augment > 0 or real_neutral else None)
-        real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment)
-                if real_neutral else None)
+        scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
+        real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
+                                   real_emotion_share, scale) if real_neutral else None)
         self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
                                               augmenter if wave_augment > 0 else None, wave_augment, real)
 
@@ -165,7 +174,7 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
                                emotion_fbank=emotion_inputs)
         if "real" in batch and (self.cfg.real_neutral_weight > 0 or self.cfg.real_neutral_pull > 0):
-            ce, pull = self.real_neutral_loss(batch["real"], inputs, batch["emotion"])
+            ce, pull = self.real_neutral_loss(batch["real"], batch["real_emotion"], inputs, batch["emotion"])
             losses["real_neutral"], losses["real_neutral_pull"] = ce, pull
             losses["total"] = losses["total"] + self.cfg.real_neutral_weight * ce + self.cfg.real_neutral_pull * pull
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
@@ -173,28 +182,33 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
         return losses["total"]
 
-    def real_neutral_loss(self, real: torch.Tensor, inputs: torch.Tensor,
+    def real_neutral_loss(self, real: torch.Tensor, real_emotion: torch.Tensor, inputs: torch.Tensor,
                           emotion: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`), through the
-        same spectrogram augmentation as the corpus's: the emotion classifier's cross-entropy toward neutral,
-        and the squared distance of their emotion latents to the mean latent of the batch's neutral corpus
-        windows (``inputs [B, 4, 1024, n_mels]``, quadruple emotions ``[B]``; detached), over the corpus
-        windows' latent variance (0 when the batch has no neutral quadruple or the pull is off)."""
+        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`) of emotions
+        ``real_emotion [B]`` (neutral unless ``real_emotion_share``), through the same spectrogram
+        augmentation as the corpus's: the emotion classifier's cross-entropy toward their emotions, and the
+        squared distance of each one's emotion latent to the mean latent of the batch's corpus windows of its
+        emotion (``inputs [B, 4, 1024, n_mels]``, quadruple emotions ``[B]``; detached), over the corpus
+        windows' latent variance (over the real windows whose emotion the batch has; 0 when none has, or
+        the pull is off)."""
         if self.cfg.augment:
             g = step_generator(self.seed, self.global_step, self.global_rank, 2)
             real = augment_fbank(real.cpu(), g, self.cfg.freq_mask, self.cfg.time_mask, self.cfg.noise_std,
                                  self.cfg.max_shift).to(real.device)
         enc = self.model.encode(real, parts=("emotion",))
-        neutral = EMOTIONS.index("neutral")
-        target = torch.full((len(real),), neutral, dtype=torch.long, device=real.device)
-        ce = torch.nn.functional.cross_entropy(enc.emotion_logits, target)
+        ce = torch.nn.functional.cross_entropy(enc.emotion_logits, real_emotion)
         pull = ce.new_zeros(())
-        chosen = emotion == neutral
-        if self.cfg.real_neutral_pull > 0 and chosen.any():
+        matched = (real_emotion[:, None] == emotion[None, :])  # [real, quadruple]
+        if self.cfg.real_neutral_pull > 0 and matched.any():
+            chosen = matched.any(0)
             with torch.no_grad():
                 corpus = self.model.encode(inputs[chosen].flatten(0, 1), parts=("emotion",)).emotion
+            corpus_emotion = emotion[chosen].repeat_interleave(inputs.shape[1])
             spread = corpus.var(0).mean() if len(corpus) > 1 else corpus.new_ones(())
-            pull = ((enc.emotion - corpus.mean(0)) ** 2).mean() / (spread + 1e-6)
+            has = matched.any(1)
+            same = (real_emotion[has][:, None] == corpus_emotion[None, :]).float()
+            target = same @ corpus / same.sum(1, keepdim=True)
+            pull = ((enc.emotion[has] - target) ** 2).mean() / (spread + 1e-6)
         return ce, pull
 
     def configure_optimizers(self):
@@ -239,6 +253,8 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     """Data module, Lightning module and export function of one run."""
     if not 0.0 <= config.wave_augment <= 1.0:
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
+    if not 0.0 <= config.real_emotion_share <= 1.0:
+        raise ConfigError(f"real_emotion_share {config.real_emotion_share}: a share of the real windows, 0-1")
     if config.real_neutral_weight < 0 or config.real_neutral_pull < 0:
         raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}, real_neutral_pull "
                           f"{config.real_neutral_pull}: must be >= 0")
@@ -247,7 +263,8 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits, config.wave_augment, config.wave, config.real_neutral)
+                            config.train_splits, config.wave_augment, config.wave, config.real_neutral,
+                            config.real_emotion_share)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "

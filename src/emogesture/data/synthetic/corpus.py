@@ -102,6 +102,12 @@ class CorpusConfig:
         return d
 
 
+def corpus_emotion_prosody_scale(root: Path) -> float:
+    """The emotion prosody scale a built corpus at ``root`` was made with (1 for corpora from before it)."""
+    manifest = json.loads((Path(root) / MANIFEST).read_text(encoding="utf-8"))
+    return float(manifest["config"].get("emotion_prosody_scale", 1.0))
+
+
 @dataclass
 class CorpusSummary:
     """What a build did: take counts, audio hours, takes per split, wall time."""

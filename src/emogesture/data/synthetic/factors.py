@@ -229,12 +229,18 @@ def make_jitter(seed: int, speaker_id: int, take: int) -> TakeJitter:
     """Per-take deviations from ``default_rng([seed, 202, speaker_id, take])``."""
     rng = np.random.default_rng([seed, 202, speaker_id, take])
     n = rng.normal
-    prosody = Prosody(pitch=float(n(0, 0.6)), pitch_range=float(np.exp(n(0, 0.12))),
-                      rate=float(np.exp(n(0, 0.04))), gain_db=float(n(0, 1.0)), tilt=float(n(0, 0.08)),
-                      breathiness=float(abs(n(0, 0.04))))
+    prosody = draw_take_prosody(rng)
     posture = {k: float(n(0, 0.04)) for k in POSTURE_KEYS}
     return TakeJitter(prosody, float(np.exp(n(0, 0.15))), float(np.exp(n(0, 0.1))),
                       float(np.exp(n(0, 0.1))), posture)
+
+
+def draw_take_prosody(rng: np.random.Generator) -> Prosody:
+    """One take's random deviation of the speech prosody from its speaker's and emotion's, drawn from ``rng``."""
+    n = rng.normal
+    return Prosody(pitch=float(n(0, 0.6)), pitch_range=float(np.exp(n(0, 0.12))),
+                   rate=float(np.exp(n(0, 0.04))), gain_db=float(n(0, 1.0)), tilt=float(n(0, 0.08)),
+                   breathiness=float(abs(n(0, 0.04))))
 
 
 def combine_prosody(*parts: Prosody) -> Prosody:

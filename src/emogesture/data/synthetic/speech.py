@@ -25,6 +25,8 @@ import soundfile as sf
 from scipy.signal import lfilter, resample_poly
 
 from emogesture.audio import TARGET_SAMPLE_RATE as SAMPLE_RATE
+from emogesture.audio.intonation import reshape_pitch
+from emogesture.audio.wave_augment import time_stretch
 from emogesture.data.synthetic.factors import BASE_WORDS_PER_SECOND, Prosody, Voice
 from emogesture.data.synthetic.text import syllables, words_of
 from emogesture.errors import EmogestureError
@@ -148,6 +150,15 @@ def shape_audio(x: np.ndarray, prosody: Prosody, rng: np.random.Generator) -> tu
     x = np.where(mag > knee, np.sign(x) * (knee + 0.19 * np.tanh((mag - knee) / 0.19)), x)
     noise = rng.standard_normal(len(x)) * 10 ** (NOISE_FLOOR_DB / 20)
     return (x + noise).astype(np.float32), x.astype(np.float32)
+
+
+def give_prosody(x: np.ndarray, prosody: Prosody, rng: np.random.Generator) -> np.ndarray:
+    """A recorded voice ``x`` ``[N]`` (16 kHz) spoken with ``prosody`` as the corpus's voices are: its pitch
+    level and span moved (TD-PSOLA, the formants kept), its tempo (WSOLA), then :func:`shape_audio`'s tilt,
+    breathiness, tremolo, loudness and limiter, without the noise floor (``rng`` draws the breath noise and
+    the tremolo's phase). ``[about N / rate]`` float32."""
+    y = reshape_pitch(x, span=prosody.pitch_range, semitones=prosody.pitch)
+    return shape_audio(time_stretch(y, prosody.rate), prosody, rng)[1]
 
 
 def speech_segments(clean: np.ndarray, min_gap: float = 0.18, min_len: float = 0.05) -> list[tuple[float, float]]:
