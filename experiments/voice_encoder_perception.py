@@ -50,6 +50,7 @@ from emogesture.data.real_speech import RECORDINGS, TRAINING_VOICES, load_real_r
 from emogesture.data.synthetic.corpus import CorpusConfig
 from emogesture.data.synthetic.factors import EMOTION_FACTORS, combine_prosody, draw_take_prosody, scale_prosody
 from emogesture.data.synthetic.speech import give_prosody
+from emogesture.pipeline.speech import SpeechLatentEncoder
 
 PARTIAL_FRAMES, PARTIAL_RATE, MIN_COVERAGE = 160, 1.3, 0.75
 TARGET_DBFS = -30.0
@@ -115,7 +116,7 @@ def windows(wave: np.ndarray) -> list[np.ndarray]:
     return [wave[int(round(s * TARGET_SAMPLE_RATE)):][:n] for s in window_starts(len(wave) / TARGET_SAMPLE_RATE)]
 
 
-def real_voice_windows(model: SpeakerEncoder, per_emotion: int, rng: np.random.Generator):
+def real_voice_windows(embed_window, per_emotion: int, rng: np.random.Generator):
     """Embeddings ``[V * 8 * per_emotion, 256]`` and emotions of the real training voices' windows, each given
     an emotion's corpus prosody plus a take's deviation (drawn from ``rng``)."""
     n = int(WINDOW_SECONDS * TARGET_SAMPLE_RATE)
@@ -127,7 +128,7 @@ def real_voice_windows(model: SpeakerEncoder, per_emotion: int, rng: np.random.G
             for _ in range(per_emotion):
                 start = int(rng.integers(len(wave) - 3 * n // 2))
                 prosody = combine_prosody(scale_prosody(EMOTION_FACTORS[emotion].prosody, scale), draw_take_prosody(rng))
-                xs.append(embed(model, give_prosody(wave[start: start + 3 * n // 2], prosody, rng)[:n].astype(np.float64)))
+                xs.append(embed_window(give_prosody(wave[start: start + 3 * n // 2], prosody, rng)[:n].astype(np.float64)))
                 ys.append(k)
     return np.array(xs), np.array(ys)
 
@@ -151,11 +152,23 @@ def main() -> None:
     ap.add_argument("--augment", type=int, default=0,
                     help="also fit on this many copies of each train window through wave_augment's random "
                          "recording conditions (seeded; 0: clean windows only)")
+    ap.add_argument("--with-speech", default="",
+                    help="a speech model: read the emotion from its emotion latent beside the embedding (each "
+                         "feature standardised on the fitting windows)")
     ap.add_argument("--real-voices", type=int, default=0,
                     help="also fit on this many windows per emotion of each real training voice, given that "
                          "emotion's corpus prosody (0: none)")
     args = ap.parse_args()
     model = load_speaker_encoder()
+    speech = SpeechLatentEncoder.from_run(args.with_speech) if args.with_speech else None
+
+    def features(wave: np.ndarray) -> np.ndarray:
+        """One window's features: the speaker embedding, and the speech model's emotion latent if asked."""
+        x = embed(model, wave)
+        if speech is not None:
+            enc, _ = speech.encode(wave.astype(np.float32), TARGET_SAMPLE_RATE, 10.0, parts=("emotion",))
+            x = np.concatenate([x, enc.emotion[0]])
+        return x
     cache = open_cache(args.cache)
     root = Path(cache.manifest["root"])
     rng, augment_rng = np.random.default_rng(0), np.random.default_rng(1)
@@ -169,7 +182,7 @@ def main() -> None:
         for wave, emotion in tqdm(recordings, unit="take", leave=False):
             for w in windows(change(wave.astype(np.float64))):
                 for k in range(1 + copies):
-                    xs.append(embed(model, w if k == 0 else augment_waveform(w, augment_rng)[0].astype(np.float64)))
+                    xs.append(features(w if k == 0 else augment_waveform(w, augment_rng)[0].astype(np.float64)))
                     ys.append(emotion)
         return np.array(xs), np.array(ys)
 
@@ -180,19 +193,23 @@ def main() -> None:
                          "(prepare --set split_source=csv+actor)")
     x_train, y_train = encode(load(train), copies=args.augment)
     if args.real_voices:
-        x_real, y_real = real_voice_windows(model, args.real_voices, np.random.default_rng(2))
+        x_real, y_real = real_voice_windows(features, args.real_voices, np.random.default_rng(2))
         x_train, y_train = np.concatenate([x_train, x_real]), np.concatenate([y_train, y_real])
-    lda = LinearDiscriminantAnalysis(solver="lsqr", shrinkage="auto").fit(x_train, y_train)
+    centre, spread = (x_train.mean(0), x_train.std(0) + 1e-8) if speech is not None else (0.0, 1.0)
+    lda = LinearDiscriminantAnalysis(solver="lsqr", shrinkage="auto").fit((x_train - centre) / spread, y_train)
     precision = np.linalg.inv(lda.covariance_)
 
+    def heard_as(x: np.ndarray) -> np.ndarray:
+        return lda.predict((x - centre) / spread)
+
     def distance(x: np.ndarray) -> np.ndarray:
-        d = x[:, None, :] - lda.means_[None]
+        d = (x - centre)[:, None, :] / spread - lda.means_[None]
         return np.sqrt(np.einsum("wkd,de,wke->wk", d, precision, d).min(1))
 
     rows, threshold, val_waves = {}, None, load(val)
     for name, change in {"as recorded": lambda w: w, **recording_changes(rng)}.items():
         x, y = encode(val_waves, lambda w, c=change: np.asarray(c(w), np.float64))
-        heard = lda.predict(x)
+        heard = heard_as(x)
         dist = distance(x)
         if threshold is None:  # the trust threshold: the as-recorded val windows' quantile
             threshold = float(np.quantile(dist, TRUST_QUANTILE))
@@ -201,18 +218,18 @@ def main() -> None:
                       "perceived": {EMOTIONS[k]: float(np.mean(heard == k)) for k in np.unique(heard)}}
     real = {}
     for rec in RECORDINGS:
-        x = np.array([embed(model, w) for w in windows(load_real_recording(rec).astype(np.float64))])
-        heard, dist = [EMOTIONS[k] for k in lda.predict(x)], distance(x)
+        x = np.array([features(w) for w in windows(load_real_recording(rec).astype(np.float64))])
+        heard, dist = [EMOTIONS[k] for k in heard_as(x)], distance(x)
         real[rec.name] = {"windows": len(x), "heard": heard, "trusted": (dist <= threshold).tolist(),
                           "distance_over_threshold": np.round(dist / threshold, 2).tolist()}
     given = {}
     if args.real_voices:
         scale = CorpusConfig().emotion_prosody_scale
         for k, emotion in enumerate(EMOTIONS):
-            x = np.array([embed(model, w) for i, rec in enumerate(RECORDINGS) if rec.folder.is_dir()
+            x = np.array([features(w) for i, rec in enumerate(RECORDINGS) if rec.folder.is_dir()
                           for w in windows(give_prosody(load_real_recording(rec), scale_prosody(
                               EMOTION_FACTORS[emotion].prosody, scale), np.random.default_rng([k, i])).astype(np.float64))])
-            given[emotion] = float(np.mean(lda.predict(x) == k))
+            given[emotion] = float(np.mean(heard_as(x) == k))
     heard_all = [h for r in real.values() for h in r["heard"]]
     trusted_all = [t for r in real.values() for t in r["trusted"]]
     result = {"train_windows": len(y_train), "augmented_copies": args.augment, "val_takes": len(val),
