@@ -26,16 +26,8 @@ mkdir -p "$RUN" "$REPORT"
 [ -f "$CONTROL/model.json" ] || { echo "run experiments/real_neutral.sh first (its control)" >&2; exit 1; }
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
        --set num_workers=1 --quiet --set "real_neutral=[$REAL_NEUTRAL]" --set real_emotion_share=0.875)
-train_one() {  # NAME THREADS [--set ...]
-    local name=$1 threads=$2 start
-    shift 2
-    grep -qs '"step": 500' "$RUN/$name/model.json" && return
-    start=$(date +%s)
-    OMP_NUM_THREADS=$threads $EG train speech --out "$RUN/$name" "${STAGE[@]}" "$@"
-    echo "$name: $(( $(date +%s) - start )) s (OMP_NUM_THREADS=$threads)" >> "$RUN/times.txt"
-}
-train_one emotions 1 &
-train_one emotions_pull 1 --set real_neutral_pull=0.3 &
+speech_more emotions 1 &
+speech_more emotions_pull 1 --set real_neutral_pull=0.3 &
 wait
 for name in emotions emotions_pull; do
     [ -f "$RUN/${name}_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/$name" --data "$CACHE" \

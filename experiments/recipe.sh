@@ -22,6 +22,16 @@ SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semit
 # real voices read without acted emotion (emogesture.data.real_speech.TRAINING_VOICES; real_neutral.sh)
 REAL_NEUTRAL="fr_june, it_carlo, ru_ivr"
 
+speech_more() {  # NAME THREADS [--set ...] : 500 speech steps more into $RUN/NAME with the caller's STAGE
+    # arguments (an array: data, starting model, settings), unless done; its wall time to $RUN/times.txt
+    local name=$1 threads=$2 start
+    shift 2
+    grep -qs '"step": 500' "$RUN/$name/model.json" && return
+    start=$(date +%s)
+    OMP_NUM_THREADS=$threads $EG train speech --out "$RUN/$name" "${STAGE[@]}" "$@"
+    echo "$name: $(( $(date +%s) - start )) s (OMP_NUM_THREADS=$threads)" >> "$RUN/times.txt"
+}
+
 timed() {  # times.txt name command... : runs a training step and appends its wall time to times.txt
     local times=$1 name=$2 start
     shift 2
