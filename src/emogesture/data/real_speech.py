@@ -20,7 +20,8 @@ recording of a single speaker, as a user would give it.
 Asterisk prompts of other languages, each read by its own professional voice (CC BY-SA 3.0; Debian's
 ``asterisk-core-sounds-{fr,it,ru}-g722``, about 25 min each, every clip of the voice joined). They are read
 without acted emotion, so a speech model may learn from them that a real voice reading evenly is neutral
-(``train speech --set real_neutral=...``). The Spanish prompts are left out: their voice is the English
+(``train speech --set real_neutral=...``) and, given an emotion's corpus prosody, that emotion
+(``real_emotion_share``). The Spanish prompts are left out: their voice is the English
 check recording's (Allison Smith), and a check voice is never trained on.
 """
 
