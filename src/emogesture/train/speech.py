@@ -61,15 +61,15 @@ class SpeechTrainConfig:
     #: unlike every synthetic one, is not yet an emotion.
     real_neutral: list[str] = field(default_factory=list)
     real_neutral_weight: float = 1.0
-    #: Also pull the real windows' emotion latents toward the mean emotion latent of the batch's neutral
-    #: windows (squared distance over the batch's latent variance, times this weight; 0 = off): the
-    #: perception reads the latent's nearest emotion mean as well as the classifier.
+    #: Also pull the real windows' emotion latents toward the mean emotion latent of the batch's corpus
+    #: windows of their emotion, neutral unless ``real_emotion_share`` (squared distance over the batch's
+    #: latent variance, times this weight; 0 = off): the perception reads the latent's nearest emotion mean
+    #: as well as the classifier.
     real_neutral_pull: float = 0.0
     #: Share of the real windows given a non-neutral emotion's speech prosody as the corpus gives it (pitch
     #: and its span, tempo, vocal effort, breath, loudness: the factor table at the corpus's scale, plus a
     #: take's random deviation) and taught as that emotion; the others keep the voice's own delivery, through
     #: the same processing, taught as neutral (0 = none processed: every real window as recorded, neutral).
-    #: The pull then goes toward the batch's windows of the real window's emotion.
     real_emotion_share: float = 0.0
     freq_mask: int = 24
     time_mask: int = 96
