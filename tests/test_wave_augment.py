@@ -83,6 +83,24 @@ def test_the_seed_decides_and_every_transform_can_apply():
         augment_waveform(x, np.random.default_rng(1), WaveAugmentConfig(noise=1.5))
 
 
+def test_the_pitch_alone_moves_only_when_asked_and_leaves_the_other_draws_alone():
+    """``pitch``: the pitch moved alone (formants and length kept); at 0 (the default) nothing is drawn for it,
+    so every earlier configuration augments as before."""
+    from emogesture.audio.intonation import f0_track
+
+    x = _voice(3.0, 150.0)
+    off = {name: 0.0 for name in TRANSFORMS}
+    y, how = augment_waveform(x, np.random.default_rng(3), WaveAugmentConfig(**off, pitch=1.0, pitch_semitones=3.0))
+    assert len(how) == 1 and how[0].startswith("pitch") and len(y) == len(x)
+    moved = 12 * np.log2(np.nanmedian(f0_track(y.astype(np.float64))) / np.nanmedian(f0_track(x)))
+    assert moved == pytest.approx(float(how[0].split()[1]), abs=0.3) and abs(moved) > 0.1
+    a, how_a = augment_waveform(x, np.random.default_rng(5))
+    b, how_b = augment_waveform(x, np.random.default_rng(5), WaveAugmentConfig(pitch=0.0, pitch_semitones=6.0))
+    assert how_a == how_b and np.array_equal(a, b)
+    with pytest.raises(ValueError, match="pitch"):
+        augment_waveform(x, np.random.default_rng(1), WaveAugmentConfig(pitch=2.0))
+
+
 def test_training_windows_heard_through_augmented_conditions(tmp_path):
     """The augmenter re-cuts the cache's own windows from the waveforms (nothing applied: the same window),
     and the quadruple dataset hands the encoders augmented windows with the clean ones as the target."""

@@ -7,6 +7,8 @@ speakers, and tempo by at most ±15 %):
 
 - ``voice``: resampled by a factor (pitch and formants together, ±4 semitones), the duration kept by a
   WSOLA time stretch;
+- ``pitch`` (off unless asked for, drawn before the others): the pitch alone moved (TD-PSOLA, formants and
+  duration kept), as one person's voice differs from another's with the same vocal tract;
 - ``tempo``: WSOLA time stretch (pitch and formants kept);
 - ``reverb``: a synthetic room impulse response (exponentially decaying noise, RT60 0.15–0.9 s, with the
   direct path) mixed at a random direct-to-reverberant ratio;
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, fftconvolve, lfilter, resample_poly, sosfilt
 
+from emogesture.audio.intonation import reshape_pitch
 from emogesture.audio.io import TARGET_SAMPLE_RATE as SAMPLE_RATE
 
 TRANSFORMS = ("voice", "tempo", "reverb", "noise", "telephone", "codec", "loudness", "microphone")
@@ -51,12 +54,16 @@ class WaveAugmentConfig:
     codec: float = 0.0  # an ffmpeg process per window: off unless asked for
     loudness: float = 0.5
     microphone: float = 0.5
+    pitch: float = 0.0  # the pitch alone (formants kept); its draw comes first, and only when > 0
+    pitch_semitones: float = 3.0
 
     def validate(self) -> None:
         for name in TRANSFORMS:
             p = getattr(self, name)
             if not 0.0 <= p <= 1.0:
                 raise ValueError(f"{name}: probability {p} is not in [0, 1]")
+        if not 0.0 <= self.pitch <= 1.0 or not 0 <= self.pitch_semitones <= 12:
+            raise ValueError(f"pitch: probability {self.pitch} (0-1) and pitch_semitones {self.pitch_semitones} (0-12)")
         if not 0 <= self.tempo_range < 0.5 or not 0 <= self.voice_semitones <= 12:
             raise ValueError("tempo_range must be in [0, 0.5) and voice_semitones in [0, 12]")
 
@@ -197,6 +204,10 @@ def augment_waveform(x: np.ndarray, rng: np.random.Generator, config: WaveAugmen
     y = np.asarray(x, np.float64)
     n = len(y)
     applied: list[str] = []
+    if config.pitch > 0 and rng.random() < config.pitch:
+        st = rng.uniform(-config.pitch_semitones, config.pitch_semitones)
+        y = reshape_pitch(y, semitones=st)
+        applied.append(f"pitch {st:+.1f} st")
     draws = rng.random(len(TRANSFORMS))  # one draw per transform whatever applies: the settings stay aligned
     on = {name: draws[i] < getattr(config, name) for i, name in enumerate(TRANSFORMS)}
     if on["voice"]:

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The pitch alone moved in training: a trained speech model (BASE; for the report, the bundled one, the
+# recipe's second stage) trained on for 500 steps with that stage's settings (recipe.sh), half of its
+# augmented windows also given a pitch moved alone by up to 3 semitones (`--set wave.pitch=0.5`; PSOLA, the
+# formants kept), as people's pitch differs around their vocal tracts more than the corpus's speakers' does;
+# calibrated on val; then, beside BASE and real_neutral.sh's control (the same 500 steps without it):
+#   - perception_shift.py on val (the val speakers' voices, never trained on, through changed recordings);
+#   - real_perception.py and real_voice_emotions.py: the real recordings (never trained on).
+# Reports in experiments/reports/pitch_alone/ (val only). About 40 min on 2 CPU cores; every step resumes.
+# Usage: experiments/pitch_alone.sh BASE_SPEECH_MODEL
+set -euo pipefail
+BASE=${1:?usage: experiments/pitch_alone.sh BASE_SPEECH_MODEL}
+cd "$(dirname "$0")/.."
+source experiments/common.sh
+source experiments/recipe.sh
+RUN=$WORK/pitch_alone
+CONTROL=$WORK/real_neutral/control_calibrated
+REPORT=experiments/reports/pitch_alone
+mkdir -p "$RUN" "$REPORT"
+[ -f "$CONTROL/model.json" ] || { echo "run experiments/real_neutral.sh first (its control)" >&2; exit 1; }
+STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
+       --quiet)
+speech_more pitch 2 --set wave.pitch=0.5 --set wave.pitch_semitones=3 --set num_workers=2
+[ -f "$RUN/pitch_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/pitch" --data "$CACHE" \
+    --out "$RUN/pitch_calibrated"
+MODELS=(base="$BASE" control="$CONTROL" pitch="$RUN/pitch_calibrated")
+.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
+.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
+.venv/bin/python experiments/perception_shift.py "$RUN/pitch_calibrated" "$CACHE" "$REPORT/perception_pitch" val
+cp "$RUN/times.txt" "$REPORT/training_time.txt"
