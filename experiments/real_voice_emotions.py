@@ -30,7 +30,7 @@ import numpy as np
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.real_speech import load_real_recording, real_recordings
 from emogesture.data.synthetic.corpus import CorpusConfig
-from emogesture.data.synthetic.factors import EMOTION_FACTORS, scale_prosody
+from emogesture.data.synthetic.factors import emotion_prosody
 from emogesture.data.synthetic.speech import give_prosody
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
@@ -41,7 +41,7 @@ HOP_SECONDS = 5.0
 def with_emotion(wave: np.ndarray, emotion: str, seed: int) -> np.ndarray:
     """``wave`` ``[N]`` (16 kHz) given the corpus's speech prosody of ``emotion`` (breath noise and tremolo
     phase from ``seed``); float32."""
-    prosody = scale_prosody(EMOTION_FACTORS[emotion].prosody, CorpusConfig().emotion_prosody_scale)
+    prosody = emotion_prosody(emotion, CorpusConfig().emotion_prosody_scale)
     return give_prosody(wave, prosody, np.random.default_rng(seed))
 
 

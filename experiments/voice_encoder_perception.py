@@ -48,7 +48,7 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.real_speech import RECORDINGS, TRAINING_VOICES, load_real_recording, load_training_voice
 from emogesture.data.synthetic.corpus import CorpusConfig
-from emogesture.data.synthetic.factors import EMOTION_FACTORS, combine_prosody, draw_take_prosody, scale_prosody
+from emogesture.data.synthetic.factors import emotion_prosody
 from emogesture.data.synthetic.speech import give_prosody
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -127,7 +127,7 @@ def real_voice_windows(embed_window, per_emotion: int, rng: np.random.Generator)
         for k, emotion in enumerate(tqdm(EMOTIONS, desc=voice, leave=False)):
             for _ in range(per_emotion):
                 start = int(rng.integers(len(wave) - 3 * n // 2))
-                prosody = combine_prosody(scale_prosody(EMOTION_FACTORS[emotion].prosody, scale), draw_take_prosody(rng))
+                prosody = emotion_prosody(emotion, scale, rng)
                 xs.append(embed_window(give_prosody(wave[start: start + 3 * n // 2], prosody, rng)[:n].astype(np.float64)))
                 ys.append(k)
     return np.array(xs), np.array(ys)
@@ -216,9 +216,9 @@ def main() -> None:
         rows[name] = {"windows": len(y), "perceived_correctly": float(np.mean(heard == y)),
                       "trusted": float(np.mean(dist <= threshold)),
                       "perceived": {EMOTIONS[k]: float(np.mean(heard == k)) for k in np.unique(heard)}}
-    real = {}
+    real, real_waves = {}, {rec.name: load_real_recording(rec).astype(np.float64) for rec in RECORDINGS}
     for rec in RECORDINGS:
-        x = np.array([features(w) for w in windows(load_real_recording(rec).astype(np.float64))])
+        x = np.array([features(w) for w in windows(real_waves[rec.name])])
         heard, dist = [EMOTIONS[k] for k in heard_as(x)], distance(x)
         real[rec.name] = {"windows": len(x), "heard": heard, "trusted": (dist <= threshold).tolist(),
                           "distance_over_threshold": np.round(dist / threshold, 2).tolist()}
@@ -226,9 +226,9 @@ def main() -> None:
     if args.real_voices:
         scale = CorpusConfig().emotion_prosody_scale
         for k, emotion in enumerate(EMOTIONS):
-            x = np.array([features(w) for i, rec in enumerate(RECORDINGS) if rec.folder.is_dir()
-                          for w in windows(give_prosody(load_real_recording(rec), scale_prosody(
-                              EMOTION_FACTORS[emotion].prosody, scale), np.random.default_rng([k, i])).astype(np.float64))])
+            x = np.array([features(w) for i, wave in enumerate(real_waves.values())
+                          for w in windows(give_prosody(wave, emotion_prosody(emotion, scale),
+                                                        np.random.default_rng([k, i])).astype(np.float64))])
             given[emotion] = float(np.mean(heard_as(x) == k))
     heard_all = [h for r in real.values() for h in r["heard"]]
     trusted_all = [t for r in real.values() for t in r["trusted"]]

@@ -12,7 +12,7 @@ from emogesture.config import from_dict
 from emogesture.data.cache import SplitWindows, WindowsCache
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.quadruples import QuadrupleIndex
-from emogesture.data.synthetic.factors import EMOTION_FACTORS, combine_prosody, draw_take_prosody, scale_prosody
+from emogesture.data.synthetic.factors import emotion_prosody
 from emogesture.data.synthetic.speech import give_prosody
 
 
@@ -102,9 +102,7 @@ class RealNeutralWindows:
         if self.emotion_share > 0:
             if rng.random() < self.emotion_share:
                 emotion = [e for e in EMOTIONS if e != "neutral"][int(rng.integers(len(EMOTIONS) - 1))]
-            prosody = combine_prosody(scale_prosody(EMOTION_FACTORS[emotion].prosody, self.prosody_scale),
-                                      draw_take_prosody(rng))
-            x = give_prosody(x, prosody, rng)
+            x = give_prosody(x, emotion_prosody(emotion, self.prosody_scale, rng), rng)
         x = x[:n]
         if rng.random() < self.share:
             x, _ = augment_waveform(x, rng, self.augmenter.config)

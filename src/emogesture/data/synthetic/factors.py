@@ -243,6 +243,13 @@ def draw_take_prosody(rng: np.random.Generator) -> Prosody:
                    breathiness=float(abs(n(0, 0.04))))
 
 
+def emotion_prosody(emotion: str, scale: float, rng: np.random.Generator | None = None) -> Prosody:
+    """``emotion``'s speech prosody from the factor table at the corpus's emotion prosody ``scale``; with
+    ``rng``, plus one take's random deviation (:func:`draw_take_prosody`) drawn from it."""
+    p = scale_prosody(EMOTION_FACTORS[emotion].prosody, scale)
+    return p if rng is None else combine_prosody(p, draw_take_prosody(rng))
+
+
 def combine_prosody(*parts: Prosody) -> Prosody:
     """Sum pitch, gain and tilt; multiply pitch range and rate."""
     return Prosody(
