@@ -17,12 +17,15 @@ The clips of a group are joined in their order with 0.3 s of silence between the
 recording of a single speaker, as a user would give it.
 
 **Real voices for training** (:data:`TRAINING_VOICES`, :func:`load_training_voice`) are other people: the
-Asterisk prompts of other languages, each read by its own professional voice (CC BY-SA 3.0; Debian's
-``asterisk-core-sounds-{fr,it,ru}-g722``, about 25 min each, every clip of the voice joined). They are read
-without acted emotion, so a speech model may learn from them that a real voice reading evenly is neutral
+Asterisk prompts of other languages, each read by its own professional voice, every clip of the voice
+joined. Three are studio recordings at 16 kHz (CC BY-SA 3.0; Debian's ``asterisk-core-sounds-{fr,it,ru}-g722``,
+about 25 min each); three more are telephone-band recordings at 8 kHz (``asterisk-prompt-es-co``, GPL,
+a Colombian Spanish voice, 9 min; ``asterisk-prompt-fr-armelle``, GPL, a French voice, 12 min;
+``asterisk-prompt-it-menardi-wav``, CC BY-SA 3.0, an Italian voice, 20 min). They are read without acted
+emotion, so a speech model may learn from them that a real voice reading evenly is neutral
 (``train speech --set real_neutral=...``) and, given an emotion's corpus prosody, that emotion
-(``real_emotion_share``). The Spanish prompts are left out: their voice is the English
-check recording's (Allison Smith), and a check voice is never trained on.
+(``real_emotion_share``). The Mexican Spanish core prompts are left out: their voice is the English check
+recording's (Allison Smith), and a check voice is never trained on.
 """
 
 from __future__ import annotations
@@ -116,12 +119,14 @@ def real_recordings(root: str | PathLike[str] | None = None) -> list[RealRecordi
 
 @dataclass(frozen=True)
 class TrainingVoice:
-    """A real voice to train on: every ``.g722`` clip under ``folder`` (where Debian's ``package`` installs it)."""
+    """A real voice to train on: every clip matching ``pattern`` under ``folder`` (where Debian's ``package``
+    installs it)."""
 
     name: str
     description: str
     folder: Path
     package: str
+    pattern: str = "*.g722"
 
 
 TRAINING_VOICES: dict[str, TrainingVoice] = {v.name: v for v in (
@@ -131,27 +136,46 @@ TRAINING_VOICES: dict[str, TrainingVoice] = {v.name: v for v in (
                   "asterisk-core-sounds-it-g722"),
     TrainingVoice("ru_ivr", "a Russian telephone-prompt voice", ASTERISK_SOUNDS / "ru_RU_f_IvrvoiceRU",
                   "asterisk-core-sounds-ru-g722"),
+    TrainingVoice("es_co", "a Colombian Spanish telephone-prompt voice, 8 kHz", ASTERISK_SOUNDS / "es",
+                  "asterisk-prompt-es-co", "*.gsm"),
+    TrainingVoice("fr_armelle", "Armelle Desjardins, French telephone prompts, 8 kHz", ASTERISK_SOUNDS / "fr",
+                  "asterisk-prompt-fr-armelle", "*.gsm"),
+    TrainingVoice("it_menardi", "Paola Dal Zot, Italian telephone prompts, 8 kHz",
+                  ASTERISK_SOUNDS / "it_IT_f_Menardi", "asterisk-prompt-it-menardi-wav", "*.wav"),
 )}
 
 
-def load_training_voice(name: str) -> np.ndarray:
-    """Every clip of training voice ``name`` (:data:`TRAINING_VOICES`) in path order, decoded by one ffmpeg
-    run and joined -> a 16-kHz waveform ``[N]`` float32."""
-    if name not in TRAINING_VOICES:
-        raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
-    voice = TRAINING_VOICES[name]
-    clips = sorted(voice.folder.rglob("*.g722")) if voice.folder.is_dir() else []
-    if not clips:
-        raise InputFileError(voice.folder, f"no .g722 clips; install Debian's {voice.package}")
-    if shutil.which("ffmpeg") is None:
-        raise EmogestureError(f"real voice {name}: ffmpeg is needed to decode its clips")
+def _decode(clips: list[Path]) -> tuple[bytes, str]:
+    """``clips`` decoded by one ffmpeg run and joined -> (16-bit samples at 16 kHz, ffmpeg's error output)."""
     with tempfile.TemporaryDirectory(prefix="emogesture-voice-") as tmp:
         listing = Path(tmp) / "clips.txt"
         listing.write_text("".join(f"file '{c}'\n" for c in clips), encoding="utf-8")
         proc = subprocess.run(["ffmpeg", "-nostdin", "-v", "error", "-f", "concat", "-safe", "0", "-i", str(listing),
                                "-ac", "1", "-ar", str(SAMPLE_RATE), "-f", "s16le", "-"], capture_output=True)
-    if proc.returncode != 0 or not proc.stdout:
-        raise EmogestureError(f"real voice {name}: ffmpeg could not decode {voice.folder}: "
-                              f"{proc.stderr.decode(errors='replace').strip()[-200:]}")
-    wave = np.frombuffer(proc.stdout, "<i2").astype(np.float32) / 32768.0
+    errors = proc.stderr.decode(errors="replace").strip()
+    return (proc.stdout if proc.returncode == 0 else b""), errors
+
+
+def load_training_voice(name: str) -> np.ndarray:
+    """Every clip of training voice ``name`` (:data:`TRAINING_VOICES`) in path order, decoded and joined -> a
+    16-kHz waveform ``[N]`` float32. A clip ffmpeg cannot read (two of the Colombian voice's are damaged) is
+    left out, and so are clips of pure silence (a ``silence`` folder)."""
+    if name not in TRAINING_VOICES:
+        raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
+    voice = TRAINING_VOICES[name]
+    clips = sorted(c for c in voice.folder.rglob(voice.pattern) if "silence" not in c.relative_to(voice.folder).parts) \
+        if voice.folder.is_dir() else []
+    if not clips:
+        raise InputFileError(voice.folder, f"no {voice.pattern} clips; install Debian's {voice.package}")
+    if shutil.which("ffmpeg") is None:
+        raise EmogestureError(f"real voice {name}: ffmpeg is needed to decode its clips")
+    while True:  # ffmpeg's concat demuxer stops at a clip it cannot open (and exits with 0): leave it out, again
+        data, errors = _decode(clips)
+        damaged = [c for c in clips if f"'{c}'" in errors]
+        if not damaged or len(damaged) == len(clips):
+            break
+        clips = [c for c in clips if c not in damaged]
+    if not data or errors:
+        raise EmogestureError(f"real voice {name}: ffmpeg could not decode {voice.folder}: {errors[-200:]}")
+    wave = np.frombuffer(data, "<i2").astype(np.float32) / 32768.0
     return wave - wave.mean()
