@@ -21,18 +21,6 @@ mkdir -p "$REPORT"
 
 source experiments/recipe.sh
 train_bundle "$RUN" "$CACHE"
-BUNDLE=$RUN/bundle
 
 # 6. the bundle, as shipped (float16), scored once on the test texts; the card; into the package
-$EG evaluate speech "$BUNDLE/speech.json" --data "$CACHE" --split test --out "$REPORT/speech" --overwrite
-$EG evaluate gesture --data "$CACHE" --extractor "$BUNDLE/extractor.json" --split test --out "$REPORT/gesture" \
-    --overwrite --model "ours=$BUNDLE/gesture.json"
-.venv/bin/python experiments/perception_shift.py "$BUNDLE/speech.json" "$CACHE" "$REPORT"
-$EG evaluate real --data "$CACHE" --model "$BUNDLE/gesture.json" --out "$REPORT/real" --overwrite
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
-.venv/bin/python experiments/model_card.py "$BUNDLE" "$REPORT" "$RUN/times.txt" "$CACHE"
-ASSETS=src/emogesture/assets/model
-mkdir -p "$ASSETS"
-rm -f "$ASSETS"/*
-cp "$BUNDLE"/{speech,gesture,extractor}.{json,safetensors} "$BUNDLE"/{MODEL_CARD.md,card.json,SHA256SUMS} "$ASSETS/"
-$EG model-info
+ship_bundle "$RUN/bundle" "$REPORT" "$RUN/times.txt"

@@ -204,6 +204,13 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     gesture_steps = json.loads((bundle / "gesture.json").read_text())["extra"]["step"]
     heard = Counter(k for r in real["real"].values() for k in r["heard"])
     heard_real = heard_text(heard) + f" of {sum(heard.values())} windows"
+    real_voices = perception["info"].get("real_voices", [])
+    heard_by = ("synthetic voices only" if not real_voices else
+                f"synthetic voices only; its perception's calibration has also heard {len(real_voices)} real voices "
+                "(other people's telephone prompts in French, Italian and Russian) given each emotion's prosody, "
+                "and reads each emotion by their mean too")
+    means_text = ("" if not real_voices else
+                  " (each emotion has two means: the training voices' and the real voices', the nearer counting most)")
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model
@@ -258,7 +265,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 
 ## Limits, in plain words
 
-- **Real voices lie outside its training data.** It has heard synthetic voices only. On real read
+- **Real voices lie outside its training data.** Its weights have heard {heard_by}. On real read
   speech (Debian's `pocketsphinx-testdata`: a LibriVox reader, a man reading card names, three CMU
   test utterances; and `asterisk-core-sounds-en-g722`: a professional voice reading telephone-system
   prompts; `emogesture evaluate real`) beside the test split's neutral takes:
@@ -270,14 +277,13 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   So the emotion it perceives in your voice may be wrong (these real recordings, all read without
   acted emotion, are heard as {heard_real}), and set it yourself where it matters. Recording by
   recording: {real_recording_text(real)}. A window `--emotion auto` trusts is one whose speech lies
-  within the range of the training speech, not one whose emotion is right: the telephone prompts' warm,
-  bright voice lies well within it and is heard as happiness, so its motion is the model's happy motion
-  (the hands more often in front of the chest than the neutral takes'), where the readers' voices,
-  beyond the range, are animated as neutral.
+  within the range of the training speech, not one whose emotion is right: a trusted window is animated
+  with the emotion heard, right or wrong, where the windows beyond the range are animated as neutral.
 - **What `generate` does about it.** It prints the emotion it perceives (majority over 10-s windows,
   with its mean probability) and writes every window's perception to `*_perception.json`. A window's
   emotion is read by the speech model's classifier and, where the window's emotion latent lies near an
-  emotion the model knows, by the nearest emotion mean as well; elsewhere by the classifier alone. With
+  emotion the model knows, by the nearest emotion mean as well{means_text}; elsewhere by the classifier
+  alone. With
   `--emotion auto` (the default) it trusts a window's emotion only where the speech lies within the
   range of the training speech: the window's emotion latent near an emotion the model knows, and its
   style latent (the voice) near one of the training speakers. Each is a Mahalanobis distance to the

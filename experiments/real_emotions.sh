@@ -25,7 +25,7 @@ REPORT=experiments/reports/real_emotions
 mkdir -p "$RUN" "$REPORT"
 [ -f "$CONTROL/model.json" ] || { echo "run experiments/real_neutral.sh first (its control)" >&2; exit 1; }
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
-       --set num_workers=1 --quiet --set "real_neutral=[$REAL_NEUTRAL]" --set real_emotion_share=0.875)
+       --set num_workers=1 --quiet --set "real_neutral=[$REAL_VOICES]" --set real_emotion_share=0.875)
 speech_more emotions 1 &
 speech_more emotions_pull 1 --set real_neutral_pull=0.3 &
 wait

@@ -24,11 +24,11 @@ mkdir -p "$RUN" "$REPORT"
 # 500 steps more from BASE with the recipe's second-stage settings, with and without the real voices, side by side
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
        --set num_workers=1 --quiet)
-speech_more anchored 1 --set "real_neutral=[$REAL_NEUTRAL]" &
+speech_more anchored 1 --set "real_neutral=[$REAL_VOICES]" &
 speech_more control 1 &
 wait
 # the same with the real windows' emotion latents also pulled toward the batch's neutral latents, alone
-speech_more anchored_pull 2 --set "real_neutral=[$REAL_NEUTRAL]" --set real_neutral_pull=1 --set num_workers=2
+speech_more anchored_pull 2 --set "real_neutral=[$REAL_VOICES]" --set real_neutral_pull=1 --set num_workers=2
 for name in anchored control anchored_pull; do
     [ -f "$RUN/${name}_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/$name" --data "$CACHE" \
         --out "$RUN/${name}_calibrated"

@@ -10,17 +10,18 @@
 #      voices moved by up to 6 semitones and more level changes (`speech_tuned`, the one used below);
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
-#   4. the speech model's emotion perception (class means on train, trust threshold on val), and the
-#      gesture model's fallback style for unfamiliar voices (the training speaker whose style gives its
-#      typical motion on the val split's neutral windows);
+#   4. the speech model's emotion perception (class means on train and of three real voices given each
+#      emotion, trust threshold on val), and the gesture model's fallback style for unfamiliar voices (the
+#      training speaker whose style gives its typical motion on the val split's neutral windows);
 #   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
 #      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
 
 # the second speech stage's harder conditions and learning rate (real_neutral.sh trains on with them)
 SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
              --set lr=5e-4 --set lr_decay_start=100)
-# real voices read without acted emotion (emogesture.data.real_speech.TRAINING_VOICES; real_neutral.sh)
-REAL_NEUTRAL="fr_june, it_carlo, ru_ivr"
+# the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
+# the perception's calibration gives each emotion a mean of theirs too (4.); real_neutral.sh trains on them
+REAL_VOICES="fr_june, it_carlo, ru_ivr"
 
 speech_more() {  # NAME THREADS [--set ...] : 500 speech steps more into $RUN/NAME with the caller's STAGE
     # arguments (an array: data, starting model, settings), unless done; its wall time to $RUN/times.txt
@@ -73,9 +74,28 @@ train_bundle() {  # RUN CACHE
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
     [ -f "$run/speech_calibrated/model.json" ] || $EG calibrate speech --model "$speech" --data "$cache" \
-        --out "$run/speech_calibrated"
+        --out "$run/speech_calibrated" --real-voices "$REAL_VOICES"
     [ -f "$run/gesture_styled/model.json" ] || $EG calibrate style --model "$run/gesture" --data "$cache" \
         --out "$run/gesture_styled"
     $EG bundle --speech "$run/speech_calibrated" --gesture "$run/gesture_styled" --extractor "$run/extractor" \
         --out "$run/bundle" --overwrite "${GENERATION[@]}"
+}
+
+ship_bundle() {  # BUNDLE REPORT TIMES : 6. the bundle, as shipped (float16), scored once on the test texts
+    # (speech and gesture reports, the perception on changed voices, real recorded speech against the test
+    # takes of the same emotion), its model card written from those numbers and TIMES (its trainings' wall
+    # times), then copied into the package
+    local bundle=$1 report=$2 times=$3 assets=src/emogesture/assets/model
+    mkdir -p "$report"
+    $EG evaluate speech "$bundle/speech.json" --data "$CACHE" --split test --out "$report/speech" --overwrite
+    $EG evaluate gesture --data "$CACHE" --extractor "$bundle/extractor.json" --split test --out "$report/gesture" \
+        --overwrite --model "ours=$bundle/gesture.json"
+    .venv/bin/python experiments/perception_shift.py "$bundle/speech.json" "$CACHE" "$report"
+    $EG evaluate real --data "$CACHE" --model "$bundle/gesture.json" --out "$report/real" --overwrite
+    [ "$times" -ef "$report/training_time.txt" ] || cp "$times" "$report/training_time.txt"
+    .venv/bin/python experiments/model_card.py "$bundle" "$report" "$times" "$CACHE"
+    mkdir -p "$assets"
+    rm -f "$assets"/*
+    cp "$bundle"/{speech,gesture,extractor}.{json,safetensors} "$bundle"/{MODEL_CARD.md,card.json,SHA256SUMS} "$assets/"
+    $EG model-info
 }

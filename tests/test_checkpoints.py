@@ -32,6 +32,20 @@ def test_round_trip_gives_the_same_outputs(tmp_path):
     assert sorted(p.name for p in (tmp_path / "run").iterdir()) == ["model.json", "model.safetensors"]
 
 
+def test_a_copy_saved_in_the_stored_type_keeps_a_bundles_float16_weights_byte_for_byte(tmp_path):
+    from emogesture.checkpoints import stored_weights_dtype
+
+    model = _model().eval()
+    save_model(tmp_path / "run", "extractor", model, model.config, {"motion_mean": [0.0]})
+    save_model(tmp_path / "half", "extractor", model, model.config, {"motion_mean": [0.0]}, weights_dtype=torch.float16)
+    assert stored_weights_dtype(load_model(tmp_path / "run", "extractor")) is None
+    half = load_model(tmp_path / "half", "extractor")
+    assert stored_weights_dtype(half) == torch.float16
+    save_model(tmp_path / "copy", "extractor", half.model, half.config, half.metadata,
+               weights_dtype=stored_weights_dtype(half))  # what a calibration does with a bundle's model
+    assert read_meta(tmp_path / "copy", "extractor")["weights_sha256"] == half.meta["weights_sha256"]
+
+
 def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatch):
     """A model built to be loaded is built on the meta device: no random fill runs and the global random
     stream is not touched; every weight is the file's, in the model's own type (float16 files load as

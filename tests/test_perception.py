@@ -178,3 +178,49 @@ def test_calibration_refuses_a_split_the_model_trained_on(tmp_path):
     with pytest.raises(EmogestureError, match="test split"):
         calibrate_perception_run(tmp_path / "speech", tmp_path / "no_cache", tmp_path / "out", split="test")
     assert not (tmp_path / "out").exists()
+
+
+def test_real_voices_emotions_get_their_own_means_beside_the_corpus():
+    train, labels = clusters(60, 0)
+    held, _ = clusters(20, 1)
+    offset = np.random.default_rng(5).normal(0, 4, 48)  # what sets a real voice apart, whatever its emotion
+    real, real_labels = clusters(20, 2, shift=offset)
+    plain = fit_perception(windows(train), labels, labels % 2, windows(held))
+    both = fit_perception(windows(train), labels, labels % 2, windows(held), real=windows(real),
+                          real_emotions=real_labels)
+    assert both.labels == list(EMOTIONS) * 2 and both.info["real_windows"] == len(real_labels)
+    assert np.allclose(both.neutral(), train[labels == 0].mean(0))  # auto still blends toward the corpus's neutral
+    other, other_labels = clusters(10, 3, shift=offset)  # another real voice of the same kind
+    flat = np.zeros((len(other), 8))
+    assert (plain.emotion.nearest(other) > plain.emotion.threshold).mean() > 0.9
+    assert (both.emotion.nearest(other) <= both.emotion.threshold).mean() > 0.9
+    assert (both.read(other, flat).argmax(1) == other_labels).mean() > 0.9
+    # each emotion's probability sums its two means; the corpus's windows are read as before
+    lp = both.emotion.log_posteriors(other[:3])
+    summed = both.summed(other[:3], flat[:3])
+    assert np.allclose(summed[:, 2], log_softmax(flat[:3])[:, 2] + np.logaddexp(lp[:, 2], lp[:, 10]))
+    inside = held[plain.emotion.nearest(held) <= plain.emotion.threshold][:20]
+    assert (both.read(inside, np.zeros((len(inside), 8))).argmax(1)
+            == plain.read(inside, np.zeros((len(inside), 8))).argmax(1)).mean() >= 0.95
+    q = EmotionPerception.from_dict(both.to_dict())
+    assert np.allclose(q.read(other, flat), both.read(other, flat))
+
+
+def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp_path, monkeypatch):
+    from emogesture.assets import bundled_model_file
+    from emogesture.data import real_speech
+    from emogesture.pipeline.perception import calibrate_perception_run, real_voice_latents
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+
+    t = np.arange(20 * 16000) / 16000
+    hum = (0.1 * (np.sin(2 * np.pi * 3 * t) > -0.3) * np.sin(2 * np.pi * 150 * t)).astype(np.float32)
+    monkeypatch.setattr(real_speech, "load_training_voice", lambda name: hum)
+    encoder = SpeechLatentEncoder.from_run(bundled_model_file("speech"))
+    latents, emotions = real_voice_latents(encoder, ["fr_june"], 1, 1.5)
+    assert emotions.tolist() == list(range(8)) and latents.emotion.shape == (8, encoder.loaded.config.latent_dim)
+    assert latents.emotion_logits.shape == (8, 8) and np.isfinite(latents.emotion).all()
+    assert len({tuple(np.round(z, 4)) for z in latents.emotion}) == 8  # each emotion's prosody heard differently
+    with pytest.raises(EmogestureError, match="real voice 'es_allison': unknown; known: fr_june"):
+        calibrate_perception_run(bundled_model_file("speech"), tmp_path / "no_cache", tmp_path / "out",
+                                 real_voices=["es_allison"])
+    assert not (tmp_path / "out").exists()

@@ -112,6 +112,27 @@ def test_a_training_voice_leaves_out_damaged_and_silent_clips(tmp_path, monkeypa
         load_training_voice("fr_june")
 
 
+def test_training_voices_speak_every_emotion_as_the_corpus_gives_it(monkeypatch):
+    from emogesture.data import real_speech
+    from emogesture.data.beat import EMOTIONS
+    from emogesture.data.real_speech import training_voice_emotions
+
+    t = np.arange(40 * 16000) / 16000
+    voiced = (np.sin(2 * np.pi * 3 * t) > -0.3).astype(np.float32)  # syllables and pauses
+    hum = (0.1 * voiced * np.sin(2 * np.pi * 150 * t)).astype(np.float32)
+    monkeypatch.setattr(real_speech, "load_training_voice", lambda name: hum)
+    waves, labels = training_voice_emotions(["a", "b"], 2, 1.5, seed=3)
+    assert labels.tolist() == list(range(8)) * 4 and all(len(w) <= 160000 and len(w) > 150000 for w in waves)
+    assert np.array_equal(waves[0], hum[:160000])  # neutral as recorded
+    rms = [float(np.sqrt(np.mean(w ** 2))) for w in waves[:8]]
+    assert rms[EMOTIONS.index("anger")] > 1.5 * rms[0] > 1.5 * rms[EMOTIONS.index("sadness")]
+    again, _ = training_voice_emotions(["a", "b"], 2, 1.5, seed=3)
+    other, _ = training_voice_emotions(["a", "b"], 2, 1.5, seed=4)
+    assert np.array_equal(again[1], waves[1]) and not np.array_equal(other[1], waves[1])
+    with pytest.raises(EmogestureError, match="stretches 0"):
+        training_voice_emotions(["a"], 0, 1.5)
+
+
 def test_the_training_voices_are_whole():
     from emogesture.data.real_speech import TRAINING_VOICES, load_training_voice
 

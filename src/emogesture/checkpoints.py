@@ -113,6 +113,24 @@ def model_paths(path: str | PathLike[str], name: str = "model") -> tuple[Path, P
     return p / f"{name}.safetensors", p / f"{name}.json"
 
 
+def stored_weights_dtype(loaded: LoadedModel) -> torch.dtype | None:
+    """The floating-point type ``loaded``'s file stores its weights in where it is not the model's own (a
+    bundle's ``torch.float16``), else None. A calibration saves its copy in it, so that the weights keep their
+    bytes and checksum, and a gesture model trained on them still names them."""
+    weights = model_paths(loaded.path)[0]
+    if not weights.is_file():
+        weights = pending_weights(weights)
+    with safe_open(str(weights), framework="pt", device="cpu") as f:
+        for key in f.keys():
+            t = f.get_slice(key)
+            dtype = {"F16": torch.float16, "BF16": torch.bfloat16, "F32": torch.float32, "F64": torch.float64}.get(
+                t.get_dtype())
+            if dtype is not None:
+                own = next((v.dtype for k, v in loaded.model.state_dict().items() if k == key), dtype)
+                return None if dtype == own else dtype
+    return None
+
+
 def pending_weights(weights: Path) -> Path:
     """Where a save keeps the new weights until its JSON is in place (see :func:`save_model`)."""
     return weights.with_name(f".{weights.name}.pending")

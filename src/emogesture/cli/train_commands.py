@@ -66,6 +66,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                           "held-out split for the trust threshold (default val)")
     p.add_argument("--quantile", type=float, default=0.99,
                    help="quantile of the held-out distances used as the trust threshold (default 0.99)")
+    p.add_argument("--real-voices", type=_names, default=[], metavar="NAME,...",
+                   help="real training voices (e.g. fr_june,it_carlo,ru_ivr) given each of the synthetic corpus's "
+                        "emotions, each emotion of theirs read by its own mean beside the corpus's")
     p.set_defaults(func=run_calibrate_speech)
     p = _calibrate_parser(csub, "style", "the gesture model's fallback style for unfamiliar voices (--emotion auto)",
                           "gesture model (run folder or .json)", "the copy of the model with its fallback style",
@@ -121,6 +124,14 @@ def run_train_extractor(args: argparse.Namespace) -> int:
                                                                options=_options(args)))
 
 
+def _names(text: str) -> list[str]:
+    """A comma-separated list of names (``fr_june, it_carlo``) -> the names."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError(f"{text!r}: give one or more names separated by commas")
+    return names
+
+
 def _calibrate_parser(sub, name: str, help_text: str, model_help: str, out_what: str, split_help: str,
                       description: str | None = None) -> argparse.ArgumentParser:
     """A ``calibrate`` subcommand with the arguments every calibration takes."""
@@ -154,10 +165,13 @@ def run_calibrate_gesture(args: argparse.Namespace) -> int:
 def run_calibrate_speech(args: argparse.Namespace) -> int:
     from emogesture.pipeline.perception import calibrate_perception_run
 
-    p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite)
+    p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite,
+                                 real_voices=args.real_voices)
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
-          f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}: "
+          f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}"
+          + (f"; the real voices {', '.join(args.real_voices)} given each emotion ({p.info['real_windows']} windows)"
+             if args.real_voices else "") + ": "
           f"{args.out / 'model.json'}")
     return 0
 

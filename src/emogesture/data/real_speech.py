@@ -41,6 +41,9 @@ import tempfile
 import numpy as np
 
 from emogesture.audio import TARGET_SAMPLE_RATE as SAMPLE_RATE, load_audio
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.synthetic.factors import emotion_prosody
+from emogesture.data.synthetic.speech import give_prosody
 from emogesture.errors import EmogestureError, InputFileError
 
 #: Where Debian's ``pocketsphinx-testdata`` puts its recordings.
@@ -48,6 +51,7 @@ POCKETSPHINX_TESTDATA = Path("/usr/share/pocketsphinx/test/data")
 #: Where Debian's ``asterisk-core-sounds-en-g722`` puts its English prompts.
 ASTERISK_PROMPTS = Path("/usr/share/asterisk/sounds/en_US_f_Allison")
 GAP_SECONDS = 0.3
+STRETCH_SECONDS = 13  # training_voice_emotions
 ASTERISK_SOUNDS = Path("/usr/share/asterisk/sounds")
 
 
@@ -179,3 +183,31 @@ def load_training_voice(name: str) -> np.ndarray:
         raise EmogestureError(f"real voice {name}: ffmpeg could not decode {voice.folder}: {errors[-200:]}")
     wave = np.frombuffer(data, "<i2").astype(np.float32) / 32768.0
     return wave - wave.mean()
+
+
+def training_voice_emotions(names: list[str], stretches: int, prosody_scale: float,
+                            seed: int = 0) -> tuple[list[np.ndarray], np.ndarray]:
+    """The training voices ``names`` speaking every emotion: ``stretches`` stretches of each voice, evenly
+    spaced over it, each as recorded (neutral) and given each other emotion's speech prosody as the corpus gives
+    it (the factor table at ``prosody_scale``, plus one take's random deviation, drawn from ``seed``;
+    :func:`~emogesture.data.synthetic.speech.give_prosody`), then cut to its first 10 s -> 16-kHz waveforms
+    ``[160000]`` and their emotions ``[N]`` (indices into ``EMOTIONS``), voice by voice, stretch by stretch,
+    emotion by emotion. A stretch is 13 s long, so that the fastest emotion still speaks for 10 s."""
+    if stretches < 1:
+        raise EmogestureError(f"stretches {stretches}: must be at least 1")
+    waves: list[np.ndarray] = []
+    labels: list[int] = []
+    for v, name in enumerate(names):
+        wave = load_training_voice(name)
+        seconds = len(wave) // SAMPLE_RATE
+        if seconds < STRETCH_SECONDS:
+            raise EmogestureError(f"real voice {name}: {seconds} s, too short for a {STRETCH_SECONDS}-s stretch")
+        for i, start in enumerate(np.linspace(0, seconds - STRETCH_SECONDS, stretches).astype(int)):
+            stretch = wave[start * SAMPLE_RATE:(start + STRETCH_SECONDS) * SAMPLE_RATE]
+            for k, emotion in enumerate(EMOTIONS):
+                rng = np.random.default_rng([seed, v, i, k])
+                spoken = stretch if emotion == "neutral" else give_prosody(
+                    stretch, emotion_prosody(emotion, prosody_scale, rng), rng)
+                waves.append(np.asarray(spoken[:10 * SAMPLE_RATE], np.float32))
+                labels.append(k)
+    return waves, np.asarray(labels)

@@ -30,6 +30,17 @@ latent of many dimensions, is near 0 or 1 everywhere); the division changes no l
 val split's held-out voices under changed recording conditions, against the head alone and the sum
 everywhere or weighted by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
 
+A real voice lies apart from the synthetic training voices in the emotion latent as well, so the corpus's
+emotion means alone place a real person's even reading nearest whichever corpus emotion happens to lie in
+that direction (happiness or surprise for a warm professional voice, contempt for a flat reader). A
+calibration with real voices (``emogesture calibrate speech --real-voices fr_june,it_carlo,ru_ivr``; the
+voices of :data:`emogesture.data.real_speech.TRAINING_VOICES`, never the checks') gives each emotion a second
+mean: of those voices' stretches, as recorded for neutral and given each other emotion's speech prosody as
+the corpus gives it (:func:`emogesture.data.real_speech.training_voice_emotions`). An emotion's posterior
+sums over its means; the spread, the neutral mean that ``auto`` blends toward and the voice range stay the
+corpus's. Only the studio voices are used: the 8-kHz telephone voices would draw the held-out voices heard
+through a telephone band toward their means.
+
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
 emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
@@ -51,21 +62,25 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from pathlib import Path
 from dataclasses import dataclass
 from os import PathLike
 
 import numpy as np
 
 from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
-                                    trained_splits)
+                                    stored_weights_dtype, trained_splits)
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
+from emogesture.data.real_speech import TRAINING_VOICES, training_voice_emotions
+from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.diffusion.residual import shrunk_covariance
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
 TRUST_QUANTILE = 0.99
 COMPONENTS = 32
+REAL_STRETCHES = 10  # per real voice, when the perception learns real voices' emotions
 
 
 def log_softmax(x: np.ndarray) -> np.ndarray:
@@ -136,7 +151,7 @@ class LatentRange:
 class EmotionPerception:
     """Where a speech model's emotion and style latents lie on its training speech (module docstring)."""
 
-    labels: list[str]  # the emotions of ``emotion.means``
+    labels: list[str]  # the emotion of each of ``emotion.means`` (an emotion may have several: real voices')
     emotion: LatentRange  # emotion latent around the emotion means
     voice: LatentRange  # style latent around the training speakers' means
     info: dict  # how it was measured (splits, windows, quantile)
@@ -148,10 +163,13 @@ class EmotionPerception:
 
     def summed(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         """The head's log-probabilities plus the emotion means' log-posteriors, ``[W, 8]`` over ``EMOTIONS``
-        (an emotion the calibration never saw has no mean: ``-inf``), from emotion latents ``[W, D]`` and
-        head logits ``[W, 8]``; neither tempered nor renormalised."""
+        (an emotion with several means: their posteriors summed; one the calibration never saw has no mean:
+        ``-inf``), from emotion latents ``[W, D]`` and head logits ``[W, 8]``; neither tempered nor
+        renormalised."""
         means = np.full((len(logits), len(EMOTIONS)), -np.inf)
-        means[:, [EMOTIONS.index(k) for k in self.labels]] = self.emotion.log_posteriors(emotion)
+        for label, posterior in zip(self.labels, self.emotion.log_posteriors(emotion).T):
+            k = EMOTIONS.index(label)
+            means[:, k] = np.logaddexp(means[:, k], posterior)
         return log_softmax(logits) + means
 
     def read(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
@@ -166,6 +184,7 @@ class EmotionPerception:
                         log_softmax(logits))
 
     def neutral(self) -> np.ndarray:
+        """The neutral mean of the training corpus ``[D]`` (the first; real voices' means come after)."""
         return self.emotion.means[self.labels.index("neutral")]
 
     def typical_speaker(self) -> int:
@@ -188,23 +207,35 @@ class EmotionPerception:
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
-                   quantile: float = TRUST_QUANTILE, held_out_emotions: np.ndarray | None = None) -> EmotionPerception:
+                   quantile: float = TRUST_QUANTILE, held_out_emotions: np.ndarray | None = None,
+                   real: EncodedWindows | None = None, real_emotions: np.ndarray | None = None) -> EmotionPerception:
     """Emotion means (by ``emotions`` ``[N]``, indices into ``EMOTIONS``) and speaker means (by
     ``speakers`` ``[N]``) with their within-class spread from training windows; each threshold is the
     ``quantile`` of the held-out windows' distances; with the held-out windows' emotions ``[M]``, the
-    read-out's temperature is fitted on those within the range (:func:`fit_temperature`)."""
+    read-out's temperature is fitted on those within the range (:func:`fit_temperature`). With ``real``
+    windows of real voices given the corpus's emotions (``real_emotions`` ``[R]``), each of their emotions
+    gets a second mean beside the corpus's (the spread stays the training windows')."""
     emotions, speakers = np.asarray(emotions), np.asarray(speakers)
     present = sorted(set(emotions.tolist()))
     if EMOTIONS.index("neutral") not in present:
         raise EmogestureError("emotion perception needs neutral training windows")
+    labels = [EMOTIONS[k] for k in present]
     emotion = LatentRange.fit(train.emotion, emotions)
+    if real is not None:
+        real_emotions = np.asarray(real_emotions)
+        heard = sorted(set(real_emotions.tolist()))
+        emotion.means = np.concatenate([emotion.means, np.stack([real.emotion[real_emotions == k].mean(0)
+                                                                 for k in heard])])
+        labels += [EMOTIONS[k] for k in heard]
     voice = LatentRange.fit(train.style, speakers)
     d_emotion, d_voice = emotion.nearest(held_out.emotion), voice.nearest(held_out.style)
     emotion.threshold = float(np.quantile(d_emotion, quantile))
     voice.threshold = float(np.quantile(d_voice, quantile))
     info = {"train_windows": int(len(emotions)), "held_out_windows": int(len(d_emotion)), "quantile": float(quantile),
             "held_out_distance_median": {"emotion": float(np.median(d_emotion)), "voice": float(np.median(d_voice))}}
-    perception = EmotionPerception([EMOTIONS[k] for k in present], emotion, voice, info)
+    if real is not None:
+        info["real_windows"] = int(len(real_emotions))
+    perception = EmotionPerception(labels, emotion, voice, info)
     if held_out_emotions is not None:
         inside = d_emotion <= emotion.threshold
         perception.temperature = fit_temperature(perception, held_out.emotion[inside], held_out.emotion_logits[inside],
@@ -341,15 +372,21 @@ def fallback_style_of(gesture: LoadedModel) -> np.ndarray | None:
 
 
 def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike[str], out: str | PathLike[str],
-                             split: str = "val", quantile: float = TRUST_QUANTILE,
-                             overwrite: bool = False) -> EmotionPerception:
+                             split: str = "val", quantile: float = TRUST_QUANTILE, overwrite: bool = False,
+                             real_voices: list[str] | tuple[str, ...] = (),
+                             real_stretches: int = REAL_STRETCHES) -> EmotionPerception:
     """Write a copy of the speech model of ``run`` to ``out`` with its emotion perception: means and
     spread from the cache's ``train`` windows, the threshold from ``split`` (which the model must not
-    have trained on; its run records the training splits)."""
+    have trained on; its run records the training splits). With ``real_voices`` (names of
+    :data:`emogesture.data.real_speech.TRAINING_VOICES`), also means of those real voices given each of the
+    synthetic corpus's emotions (``real_stretches`` 10-s stretches of each; module docstring)."""
     if not 0.5 <= quantile < 1.0:
         raise EmogestureError(f"quantile {quantile}: must be in [0.5, 1)")
     if split in ("train", "test"):
         raise EmogestureError(f"--split {split}: calibrate on held-out windows that are not the test split (e.g. val)")
+    unknown = [v for v in real_voices if v not in TRAINING_VOICES]
+    if unknown:
+        raise EmogestureError(f"real voice {unknown[0]!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
     check_model_output(out, overwrite)
     loaded = load_model(run, "speech")
     trained_on = trained_splits(loaded)
@@ -359,9 +396,31 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     train = encoder.encode_split(cache, "train")
     held = encoder.encode_split(cache, split)
     windows = cache.split("train")
+    real = real_emotions = None
+    if real_voices:
+        root = Path(cache.manifest["root"])
+        try:
+            scale = corpus_emotion_prosody_scale(root)
+        except (OSError, KeyError, ValueError) as e:
+            raise EmogestureError(f"{root}: real voices are given the emotions of a synthetic corpus, and this "
+                                  f"cache's corpus is not one ({e})") from None
+        real, real_emotions = real_voice_latents(encoder, list(real_voices), real_stretches, scale)
     perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile,
-                                held_out_emotions=cache.split(split).emotion)
+                                held_out_emotions=cache.split(split).emotion, real=real, real_emotions=real_emotions)
     perception.info.update(split=split, trained_on=trained_on)
+    if real_voices:
+        perception.info.update(real_voices=list(real_voices), real_stretches=int(real_stretches))
     metadata = loaded.metadata.replace(train_splits=trained_on, emotion_perception=perception.to_dict())
-    save_model(out, "speech", loaded.model, loaded.config, metadata)
+    save_model(out, "speech", loaded.model, loaded.config, metadata, weights_dtype=stored_weights_dtype(loaded))
     return perception
+
+
+def real_voice_latents(encoder: SpeechLatentEncoder, names: list[str], stretches: int,
+                       prosody_scale: float) -> tuple[EncodedWindows, np.ndarray]:
+    """The real training voices ``names`` given each emotion at the corpus's ``prosody_scale``
+    (:func:`emogesture.data.real_speech.training_voice_emotions`) -> their encoded windows (emotion latents and
+    logits; one 10-s window each) and emotions ``[N]``."""
+    waves, emotions = training_voice_emotions(names, stretches, prosody_scale)
+    encoded = [encoder.encode(w, parts=("emotion",))[0] for w in waves]
+    first = EncodedWindows(*(np.concatenate([getattr(e, k)[:1] for e in encoded]) for k in EncodedWindows.stored))
+    return first, emotions

@@ -29,7 +29,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from emogesture.checkpoints import LoadedModel, check_model_output, load_model, refuse_trained_split, save_model
+from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
+                                    stored_weights_dtype)
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache, open_cache
@@ -115,5 +116,5 @@ def calibrate_fallback_run(run: str | PathLike[str], cache_dir: str | PathLike[s
     refuse_trained_split(split, gesture, speech.loaded, purpose="choose a fallback style")
     record = fit_fallback_style(gesture, speech, open_cache(cache_dir), split, seed, windows)
     save_model(out, "gesture", gesture.model, gesture.config, gesture.metadata.replace(fallback_style=record),
-               generation=gesture.generation)
+               generation=gesture.generation, weights_dtype=stored_weights_dtype(gesture))
     return record

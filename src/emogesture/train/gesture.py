@@ -24,7 +24,7 @@ import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
 from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
-                                    trained_splits)
+                                    stored_weights_dtype, trained_splits)
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
@@ -386,5 +386,6 @@ def calibrate_run(run: Path, cache_dir: Path, out: Path, split: str = "val", see
     stats = calibrate_residual(gesture, model_conditions(gesture, cache, split, speech), windows.motion, seed=seed)
     stats.update(step=gesture.metadata.step, split=split)
     save_model(out, "gesture", gesture.model, gesture.config, gesture.metadata.replace(residual_calibration=stats),
-               generation=replace(gesture.generation, residual_scale=float(scale)))
+               generation=replace(gesture.generation, residual_scale=float(scale)),
+               weights_dtype=stored_weights_dtype(gesture))
     return stats
