@@ -210,7 +210,9 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                 "(other people's telephone prompts in French, Italian and Russian) given each emotion's prosody, "
                 "and reads each emotion by their mean too")
     means_text = ("" if not real_voices else
-                  " (each emotion has two means: the training voices' and the real voices', the nearer counting most)")
+                  " (each emotion has two means: the training voices' and the real voices', the nearer counting "
+                  "most; a window nearer the real voices' mean is animated with the training voices' latent of that "
+                  "emotion)")
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model

@@ -57,6 +57,9 @@ def test_shipped_files_match_their_checksums_and_load():
     speech = load_model(bundled_model_file("speech"), "speech")
     assert speech.metadata.train_splits == ["train"]  # val stays unseen for the calibrations
     assert speech.metadata.emotion_perception["info"]["split"] == "val"
+    # each emotion also read by its mean of the three real studio voices (never the real-speech checks' voices)
+    assert speech.metadata.emotion_perception["info"]["real_voices"] == ["fr_june", "it_carlo", "ru_ivr"]
+    assert speech.metadata.emotion_perception["labels"] == list(EMOTIONS) * 2
 
 
 def test_a_damaged_shipped_file_is_refused(tmp_path):

@@ -224,3 +224,26 @@ def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp
         calibrate_perception_run(bundled_model_file("speech"), tmp_path / "no_cache", tmp_path / "out",
                                  real_voices=["es_allison"])
     assert not (tmp_path / "out").exists()
+
+
+def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():
+    train, labels = clusters(60, 0)
+    held, _ = clusters(20, 1)
+    offset = np.random.default_rng(5).normal(0, 4, 48)
+    real, real_labels = clusters(20, 2, shift=offset)
+    both = fit_perception(windows(train), labels, labels % 2, windows(held), real=windows(real),
+                          real_emotions=real_labels)
+    plain = fit_perception(windows(train), labels, labels % 2, windows(held))
+    other, other_labels = clusters(10, 3, shift=offset)
+    moved = both.in_corpus_frame(other)
+    corpus_means = both.emotion.means[:8]
+    assert (np.linalg.norm(moved - corpus_means[other_labels], axis=1)
+            < 0.5 * np.linalg.norm(other - corpus_means[other_labels], axis=1)).all()
+    assert (both.emotion.distances(moved)[:, :8].argmin(1) == other_labels).mean() > 0.9
+    assert np.allclose(both.in_corpus_frame(held), held, atol=1e-3)  # the corpus's own windows stay
+    assert np.allclose(plain.in_corpus_frame(other), other)  # no real voices' means: nothing moves
+    # auto animates what it hears: the real window, trusted for its voice, gets the corpus's latent of its emotion
+    style = held[:len(other)]
+    trusted = both.trust(other, style) == 1.0
+    assert trusted.mean() > 0.9
+    assert np.allclose(auto_emotion(other.astype(np.float32), style, both)[trusted], moved[trusted], atol=1e-4)

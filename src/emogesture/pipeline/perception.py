@@ -39,7 +39,10 @@ mean: of those voices' stretches, as recorded for neutral and given each other e
 the corpus gives it (:func:`emogesture.data.real_speech.training_voice_emotions`). An emotion's posterior
 sums over its means; the spread, the neutral mean that ``auto`` blends toward and the voice range stay the
 corpus's. Only the studio voices are used: the 8-kHz telephone voices would draw the held-out voices heard
-through a telephone band toward their means.
+through a telephone band toward their means. What ``auto`` animates follows what is heard: a window near a
+real voices' mean has its emotion latent moved by the offset from that mean to the corpus's mean of the same
+emotion (:meth:`EmotionPerception.in_corpus_frame`), so the gesture model gets the latent of the emotion heard
+in a place it learned, not the real voice's own.
 
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
@@ -182,6 +185,21 @@ class EmotionPerception:
             return log_softmax(logits)
         return np.where(inside[:, None], log_softmax(self.summed(emotion, logits) / self.temperature),
                         log_softmax(logits))
+
+    def in_corpus_frame(self, emotion: np.ndarray) -> np.ndarray:
+        """Emotion latents ``[W, D]`` with what a real voice adds taken away: each window moved by the offset
+        from the real voices' mean of each emotion to the corpus's mean of it, weighted by the posterior of
+        that real mean (so a real voice's even reading lands near the corpus's neutral mean, where the gesture
+        model learned neutral motion, and a window near a corpus mean stays where it is). Unchanged without
+        real voices' means."""
+        first = {label: self.labels.index(label) for label in self.labels}
+        extra = [j for j, label in enumerate(self.labels) if first[label] != j]
+        emotion = np.asarray(emotion)
+        if not extra:
+            return emotion
+        posterior = np.exp(self.emotion.log_posteriors(emotion))[:, extra]  # [W, R]
+        offsets = np.stack([self.emotion.means[first[self.labels[j]]] - self.emotion.means[j] for j in extra])
+        return (emotion + posterior @ offsets).astype(emotion.dtype)
 
     def neutral(self) -> np.ndarray:
         """The neutral mean of the training corpus ``[D]`` (the first; real voices' means come after)."""
@@ -343,12 +361,13 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
 
 
 def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
-    """Emotion latents ``[W, D]`` (with the same windows' style latents) blended toward the neutral mean
-    by ``1 − trust`` (``--emotion auto``); unchanged when the model has no perception calibration."""
+    """Emotion latents ``[W, D]`` (with the same windows' style latents) moved into the corpus's frame where
+    they lie near a real voices' mean (:meth:`EmotionPerception.in_corpus_frame`), then blended toward the
+    neutral mean by ``1 − trust`` (``--emotion auto``); unchanged when the model has no perception calibration."""
     if perception is None:
         return emotion
     w = perception.trust(emotion, style)[:, None]
-    return (w * emotion + (1.0 - w) * perception.neutral()[None]).astype(np.float32)
+    return (w * perception.in_corpus_frame(emotion) + (1.0 - w) * perception.neutral()[None]).astype(np.float32)
 
 
 def auto_style(style: np.ndarray, perception: EmotionPerception | None,
