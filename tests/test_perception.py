@@ -247,3 +247,12 @@ def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():
     trusted = both.trust(other, style) == 1.0
     assert trusted.mean() > 0.9
     assert np.allclose(auto_emotion(other.astype(np.float32), style, both)[trusted], moved[trusted], atol=1e-4)
+    # generate's message and report say so; the corpus's own windows do not
+    heard = perceive(windows(other, style), list(range(len(other))), both, "real.wav")
+    assert (heard.real_voices > 0.5).mean() > 0.9 and "sound more like the real voices" in heard.summary("auto")
+    assert '"real_voices"' in heard.to_json()
+    familiar = perceive(windows(held, held), list(range(len(held))), both, "corpus.wav")
+    assert (familiar.real_voices < 0.5).mean() > 0.95
+    assert "sound more like the real voices" not in perceive(windows(held[:5], held[:5]), list(range(5)), both,
+                                                        "corpus.wav").summary("auto")
+    assert perceive(windows(other, style), list(range(len(other))), plain, "real.wav").real_voices is None

@@ -186,6 +186,17 @@ class EmotionPerception:
         return np.where(inside[:, None], log_softmax(self.summed(emotion, logits) / self.temperature),
                         log_softmax(logits))
 
+    def _extra_means(self) -> list[int]:
+        """Indices of the means after each emotion's first (the real voices')."""
+        return [j for j, label in enumerate(self.labels) if self.labels.index(label) != j]
+
+    def real_voices_posterior(self, emotion: np.ndarray) -> np.ndarray | None:
+        """``[W]``: the posterior of the real voices' means of emotion latents ``[W, D]``; None without them."""
+        extra = self._extra_means()
+        if not extra:
+            return None
+        return np.exp(self.emotion.log_posteriors(emotion))[:, extra].sum(1)
+
     def in_corpus_frame(self, emotion: np.ndarray) -> np.ndarray:
         """Emotion latents ``[W, D]`` with what a real voice adds taken away: each window moved by the offset
         from the real voices' mean of each emotion to the corpus's mean of it, weighted by the posterior of
@@ -193,7 +204,7 @@ class EmotionPerception:
         model learned neutral motion, and a window near a corpus mean stays where it is). Unchanged without
         real voices' means."""
         first = {label: self.labels.index(label) for label in self.labels}
-        extra = [j for j, label in enumerate(self.labels) if first[label] != j]
+        extra = self._extra_means()
         emotion = np.asarray(emotion)
         if not extra:
             return emotion
@@ -299,6 +310,8 @@ class PerceivedEmotion:
     trust: np.ndarray | None  # [W]
     #: per window, the emotion animated instead, where a timeline says (keyframe name -> share of the window)
     in_force: list[dict[str, float]] | None = None
+    #: [W] per window, the posterior of the real voices' means (None: the calibration has none)
+    real_voices: np.ndarray | None = None
 
     @property
     def majority(self) -> tuple[str, int]:
@@ -318,6 +331,10 @@ class PerceivedEmotion:
         if self.trust is None:
             return text + "; this speech model has no perception calibration, its emotion latent is used as is"
         low = int((self.trust < 1.0).sum())
+        real = int((self.real_voices > 0.5).sum()) if self.real_voices is not None else 0
+        if mode == "auto" and real:
+            text += (f"; {real} of {n} windows sound more like the real voices the perception knows than the training "
+                     "voices and are animated with the training voices' latent of the emotion heard")
         if mode == "auto" and low:
             far_voice = int((self.distance[:, 1] > 1.0).sum())
             style = (f", and in {far_voice} the voice is unlike every training voice, so its gesture style is blended "
@@ -339,6 +356,8 @@ class PerceivedEmotion:
                 row["emotion_distance"] = round(float(self.distance[i, 0]), 4)
                 row["voice_distance"] = round(float(self.distance[i, 1]), 4)
                 row["trust"] = round(float(self.trust[i]), 4)
+            if self.real_voices is not None:
+                row["real_voices"] = round(float(self.real_voices[i]), 4)
             if self.in_force is not None:
                 row["animated_emotion"] = self.in_force[i]
             rows.append(row)
@@ -357,7 +376,8 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
         distance = np.stack([perception.emotion.nearest(enc.emotion) / perception.emotion.threshold,
                              perception.voice.nearest(enc.style) / perception.voice.threshold], 1)
         trust = perception.trust(enc.emotion, enc.style)
-    return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust)
+    return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust,
+                            real_voices=None if perception is None else perception.real_voices_posterior(enc.emotion))
 
 
 def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
