@@ -21,8 +21,7 @@ mkdir -p "$RUN" "$REPORT"
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
        --quiet)
 speech_more pitch 2 --set wave.pitch=0.5 --set wave.pitch_semitones=3 --set num_workers=2
-[ -f "$RUN/pitch_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/pitch" --data "$CACHE" \
-    --out "$RUN/pitch_calibrated"
+speech_calibrated pitch_calibrated "$RUN/pitch"
 MODELS=(base="$BASE" control="$CONTROL" pitch="$RUN/pitch_calibrated")
 .venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
 .venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"

@@ -30,8 +30,7 @@ speech_more emotions 1 &
 speech_more emotions_pull 1 --set real_neutral_pull=0.3 &
 wait
 for name in emotions emotions_pull; do
-    [ -f "$RUN/${name}_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/$name" --data "$CACHE" \
-        --out "$RUN/${name}_calibrated"
+    speech_calibrated "${name}_calibrated" "$RUN/$name"
     .venv/bin/python experiments/perception_shift.py "$RUN/${name}_calibrated" "$CACHE" "$REPORT/perception_$name" val
 done
 MODELS=(base="$BASE" control="$CONTROL" emotions="$RUN/emotions_calibrated"

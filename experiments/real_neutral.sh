@@ -30,8 +30,7 @@ wait
 # the same with the real windows' emotion latents also pulled toward the batch's neutral latents, alone
 speech_more anchored_pull 2 --set "real_neutral=[$REAL_VOICES]" --set real_neutral_pull=1 --set num_workers=2
 for name in anchored control anchored_pull; do
-    [ -f "$RUN/${name}_calibrated/model.json" ] || $EG calibrate speech --model "$RUN/$name" --data "$CACHE" \
-        --out "$RUN/${name}_calibrated"
+    speech_calibrated "${name}_calibrated" "$RUN/$name"
     .venv/bin/python experiments/perception_shift.py "$RUN/${name}_calibrated" "$CACHE" "$REPORT/perception_$name" val
 done
 .venv/bin/python experiments/perception_shift.py "$BASE" "$CACHE" "$REPORT/perception_base" val

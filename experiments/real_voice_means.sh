@@ -4,7 +4,7 @@
 # val (the val speakers' voices, never trained on) with the recording changes of perception_shift.py, and on
 # the real recordings (never trained on: other people) at three gains (real_perception.py) and given each
 # emotion's prosody (real_voice_emotions.py), for:
-#   - BASE (the bundled speech model), calibrated as before, with the three studio voices' means
+#   - BASE (the bundled speech model), calibrated with the corpus's means only, with the three studio voices' means
 #     (fr_june, it_carlo, ru_ivr; recipe.sh: REAL_VOICES) and with the three 8-kHz telephone voices' means;
 #   - real_emotions.sh's model (the studio voices given random emotions in training) with the studio means;
 #   - BASE trained on for 500 steps with the second stage's settings and all six real voices taught as
@@ -26,21 +26,17 @@ mkdir -p "$RUN" "$REPORT"
 STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --checkpoint-every 100 "${SPEECH_HARD[@]}"
        --set num_workers=2 --quiet)
 speech_more anchored6 1 --set "real_neutral=[$REAL_VOICES, $TELEPHONE_VOICES]"
-calibrated() {  # NAME MODEL [--real-voices ...] : a calibrated copy in $RUN/NAME, unless there
-    local name=$1 model=$2
-    shift 2
-    [ -f "$RUN/$name/model.json" ] || $EG calibrate speech --model "$model" --data "$CACHE" --out "$RUN/$name" "$@"
-}
-calibrated base_means "$BASE" --real-voices "$REAL_VOICES"
-calibrated base_means_telephone "$BASE" --real-voices "$TELEPHONE_VOICES"
-calibrated emotions_means "$EMOTIONS" --real-voices "$REAL_VOICES"
-calibrated anchored6_calibrated "$RUN/anchored6"
-calibrated anchored6_means "$RUN/anchored6" --real-voices "$REAL_VOICES"
+speech_calibrated base "$BASE"  # the corpus's means only, whatever calibration BASE carries
+speech_calibrated base_means "$BASE" --real-voices "$REAL_VOICES"
+speech_calibrated base_means_telephone "$BASE" --real-voices "$TELEPHONE_VOICES"
+speech_calibrated emotions_means "$EMOTIONS" --real-voices "$REAL_VOICES"
+speech_calibrated anchored6_calibrated "$RUN/anchored6"
+speech_calibrated anchored6_means "$RUN/anchored6" --real-voices "$REAL_VOICES"
 for name in base_means base_means_telephone emotions_means anchored6_calibrated anchored6_means; do
     [ -f "$REPORT/perception_$name/perception_shift.md" ] || \
         .venv/bin/python experiments/perception_shift.py "$RUN/$name" "$CACHE" "$REPORT/perception_$name" val
 done
-MODELS=(base="$BASE" base_means="$RUN/base_means" base_means_telephone="$RUN/base_means_telephone"
+MODELS=(base="$RUN/base" base_means="$RUN/base_means" base_means_telephone="$RUN/base_means_telephone"
         emotions="$WORK/real_emotions/emotions_calibrated" emotions_means="$RUN/emotions_means"
         anchored6="$RUN/anchored6_calibrated" anchored6_means="$RUN/anchored6_means")
 .venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"

@@ -33,6 +33,13 @@ speech_more() {  # NAME THREADS [--set ...] : 500 speech steps more into $RUN/NA
     echo "$name: $(( $(date +%s) - start )) s (OMP_NUM_THREADS=$threads)" >> "$RUN/times.txt"
 }
 
+speech_calibrated() {  # NAME MODEL [--real-voices ...] : MODEL's emotion perception calibrated on $CACHE's val
+    # into $RUN/NAME, unless it is there
+    local name=$1 model=$2
+    shift 2
+    [ -f "$RUN/$name/model.json" ] || $EG calibrate speech --model "$model" --data "$CACHE" --out "$RUN/$name" "$@"
+}
+
 timed() {  # times.txt name command... : runs a training step and appends its wall time to times.txt
     local times=$1 name=$2 start
     shift 2

@@ -113,6 +113,9 @@ def model_paths(path: str | PathLike[str], name: str = "model") -> tuple[Path, P
     return p / f"{name}.safetensors", p / f"{name}.json"
 
 
+_FLOAT_TYPES = {"F16": torch.float16, "BF16": torch.bfloat16, "F32": torch.float32, "F64": torch.float64}
+
+
 def stored_weights_dtype(loaded: LoadedModel) -> torch.dtype | None:
     """The floating-point type ``loaded``'s file stores its weights in where it is not the model's own (a
     bundle's ``torch.float16``), else None. A calibration saves its copy in it, so that the weights keep their
@@ -120,14 +123,12 @@ def stored_weights_dtype(loaded: LoadedModel) -> torch.dtype | None:
     weights = model_paths(loaded.path)[0]
     if not weights.is_file():
         weights = pending_weights(weights)
+    own = loaded.model.state_dict()
     with safe_open(str(weights), framework="pt", device="cpu") as f:
         for key in f.keys():
-            t = f.get_slice(key)
-            dtype = {"F16": torch.float16, "BF16": torch.bfloat16, "F32": torch.float32, "F64": torch.float64}.get(
-                t.get_dtype())
-            if dtype is not None:
-                own = next((v.dtype for k, v in loaded.model.state_dict().items() if k == key), dtype)
-                return None if dtype == own else dtype
+            stored = _FLOAT_TYPES.get(f.get_slice(key).get_dtype())
+            if stored is not None and key in own:
+                return None if stored == own[key].dtype else stored
     return None
 
 
