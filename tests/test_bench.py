@@ -42,3 +42,17 @@ def test_whole_process_benchmark_runs_and_leaves_no_scratch_folder(tmp_path):
     assert inner["lengths_s"] == [1.0, 2.0] and all(x > 0 for x in inner["ms_per_audio_second"]) and inner["ratio"] > 0
     assert "in one process (no start-up; best of 1, interleaved)" in out
     assert not list(tmp_path.glob("emogesture-bench-*"))
+
+
+def test_augmentation_benchmark_times_every_transform_and_both_recipe_stages(monkeypatch):
+    monkeypatch.syspath_prepend(str(BENCH))
+    sys.modules.pop("augment", None)
+    import augment
+
+    result = augment.measure(repeats=1)
+    assert set(result["stages"]) == set(augment.STAGES) and len(result["transforms_ms"]) == 9
+    assert all(v > 0 for v in result["transforms_ms"].values())
+    # the second stage augments more windows, and more heavily, than the first
+    first, second = (result["stages"][k] for k in augment.STAGES)
+    assert second["augmented_share"] > first["augmented_share"] and second["core_s_per_step"] > 0
+    assert "| recipe stage |" in augment.markdown(result)
