@@ -135,6 +135,18 @@ def test_data_workers_draw_the_same_windows_and_leave_the_trainer_their_cores(ca
     assert trainer_threads(0, 2, {}) is None and trainer_threads(2, 2, {"OMP_NUM_THREADS": "2"}) is None
 
 
+def test_a_bank_of_augmented_variants_trains_and_needs_augmentation(cache, tmp_path):
+    run = tmp_path / "bank"
+    out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 2, "--set", "samples_per_epoch=8",
+                             "--set", "wave_augment=0.5", "--set", "wave_variants=2"), capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert json.loads((run / "run.json").read_text())["config"]["wave_variants"] == 2
+    bad = subprocess.run(cli(*TRAIN, "--data", cache, "--out", tmp_path / "bad", "--steps", 1, "--set", "wave_variants=2"),
+                         capture_output=True, text=True)
+    assert bad.returncode != 0 and "wave_variants 2" in bad.stderr and "Traceback" not in bad.stderr
+
+
 def test_two_process_ddp_gives_identical_weights(cache, tmp_path):
     run = tmp_path / "ddp"
     out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 3, "--devices", 2),

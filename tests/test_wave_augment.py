@@ -130,6 +130,39 @@ def test_training_windows_heard_through_augmented_conditions(tmp_path):
         SpeechQuadrupleDataset(train, [1, 2], 4, augmenter=on, augment_share=1.5)
 
 
+def test_a_bank_of_augmented_variants_is_made_once_and_the_same_in_any_number_of_processes(tmp_path):
+    """The bank holds K seeded augmented variants per window, made alike by one process or two; the dataset
+    draws among them, and different variants of a window differ."""
+    from emogesture.data.cache import open_cache
+    from emogesture.data.datasets import AugmentedWindowBank, SpeechQuadrupleDataset, WaveWindowAugmenter, \
+        VARIANT_STREAM
+    from emogesture.data.prepare import prepare
+
+    from helpers import make_root
+
+    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    cache = open_cache(tmp_path / "cache")
+    train = cache.split("train")
+    augmenter = WaveWindowAugmenter(cache, train, WaveAugmentConfig(noise=1.0, reverb=1.0))
+    one = AugmentedWindowBank(augmenter, 3, seed=5, processes=1, progress=False)
+    two = AugmentedWindowBank(augmenter, 3, seed=5, processes=2, progress=False)
+    assert one.fbank.shape == (len(train), 3, *train.fbank.shape[1:]) and np.array_equal(one.fbank, two.fbank)
+    j = len(train) - 1
+    expected = augmenter(j, np.random.default_rng([5, VARIANT_STREAM, j, 2])).astype(np.float16)
+    assert np.array_equal(one.fbank[j, 2], expected)  # variant v of window j: its own seeded draws
+    assert not np.allclose(one.fbank[j, 0], one.fbank[j, 1], atol=0.05)
+    other = AugmentedWindowBank(augmenter, 3, seed=6, processes=1, progress=False)
+    assert not np.array_equal(one.fbank, other.fbank)  # the run's seed decides
+    drawn = one(j, np.random.default_rng(0))
+    assert drawn.dtype == np.float32 and any(np.array_equal(drawn, one.fbank[j, v]) for v in range(3))
+    data = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=one, augment_share=1.0)
+    item = data[0]
+    assert torch.equal(item["inputs"], data[0]["inputs"]) and not torch.allclose(item["inputs"], item["fbank"], atol=0.05)
+    with pytest.raises(ValueError, match="variants"):
+        AugmentedWindowBank(augmenter, 0, seed=5)
+
+
 def test_recording_changes_do_what_they_say():
     from emogesture.audio.wave_augment import recording_changes
 

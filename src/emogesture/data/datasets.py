@@ -63,6 +63,73 @@ class WaveWindowAugmenter:
         return self.window_fbank(wave)
 
 
+#: The key that sets an augmented variant's draws apart from the quadruples' (``[seed, epoch, item]``).
+VARIANT_STREAM = 0xA6
+
+
+def _one_thread() -> None:
+    """A forked maker of variants computes its filterbanks on one thread, as a data worker does (a forked
+    process's copy of the parent's thread pool would hang)."""
+    torch.set_num_threads(1)
+
+
+def _variant_fbank(job: tuple[int, int, int]) -> np.ndarray:
+    """Window ``j``'s augmented variant ``v`` (run seed ``seed``), in a process forked from the bank's maker."""
+    j, v, seed = job
+    return _BANK_AUGMENTER(j, np.random.default_rng([seed, VARIANT_STREAM, j, v])).astype(np.float16)
+
+
+_BANK_AUGMENTER: WaveWindowAugmenter | None = None
+
+
+class AugmentedWindowBank:
+    """Each window of an augmenter's split heard through ``variants`` draws of the augmented conditions, made
+    once, before training, in ``processes`` forked processes (None: one per core); called like the augmenter
+    (``bank(j, rng)``), it gives one of window ``j``'s variants, chosen by ``rng``.
+
+    Variant ``v`` of window ``j`` is drawn from ``default_rng([seed, VARIANT_STREAM, j, v])``: the same bank
+    whatever the number of processes. The variants are kept in memory as float16 fbank windows
+    (``[N, variants, frames, n_mels]``: about 2 GB for 1200 windows and 8 variants) and shared with the data
+    workers. On a CPU, the waveform augmentation is most of a training step's work when it is drawn afresh;
+    a bank does it once per variant instead of once per use.
+    """
+
+    def __init__(self, augmenter: WaveWindowAugmenter, variants: int, seed: int, processes: int | None = None,
+                 progress: bool = True) -> None:
+        import multiprocessing
+        import os
+
+        from tqdm import tqdm
+
+        if variants < 1:
+            raise ValueError(f"variants {variants}: must be at least 1")
+        global _BANK_AUGMENTER
+        n, frames, bins = augmenter.windows.fbank.shape
+        self.variants = variants
+        self.fbank = np.empty((n, variants, frames, bins), np.float16)
+        jobs = [(j, v, seed) for j in range(n) for v in range(variants)]
+        processes = processes or len(os.sched_getaffinity(0))
+        _BANK_AUGMENTER = augmenter
+        try:
+            with tqdm(total=len(jobs), desc="augmented windows", unit="window", disable=not progress) as bar:
+                if processes == 1:
+                    self._fill(jobs, map(_variant_fbank, jobs), bar)
+                else:
+                    with multiprocessing.get_context("fork").Pool(processes, _one_thread) as pool:
+                        self._fill(jobs, pool.imap(_variant_fbank, jobs, chunksize=8), bar)
+        finally:
+            _BANK_AUGMENTER = None
+
+    def _fill(self, jobs: list[tuple[int, int, int]], made, bar) -> None:
+        for (j, v, _), fbank in zip(jobs, made):
+            self.fbank[j, v] = fbank
+            bar.update()
+
+    def __call__(self, j: int, rng: np.random.Generator) -> np.ndarray:
+        """One of window ``j``'s variants ``[frames, n_mels]`` float32, drawn from ``rng``."""
+        return np.asarray(self.fbank[j, int(rng.integers(self.variants))], np.float32)
+
+
 class RealNeutralWindows:
     """Windows of real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES`),
     made like the cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes a voice
@@ -116,15 +183,16 @@ class SpeechQuadrupleDataset(Dataset):
     Item ``i`` of epoch ``e`` is drawn from ``default_rng([seed, e, i])``: reproducible, and
     independent of worker count or order. Each item is a dict with ``fbank [4, 1024, n_mels]``
     float32, ``emotion`` (int) and ``speaker [4]`` (class indices into ``speakers``). With an
-    ``augmenter``, each window is also heard through augmented conditions with probability
-    ``augment_share`` (the same generator decides): ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
+    ``augmenter`` (drawn afresh, or one of an :class:`AugmentedWindowBank`'s variants), each window is also
+    heard through augmented conditions with probability ``augment_share`` (the same generator decides):
+    ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
     clean windows (the reconstruction target). With ``real``, also one window of a real voice,
     ``real [1024, n_mels]``, and its emotion ``real_emotion`` (int; drawn after the quadruple, from the same
     generator).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
-                 augmenter: WaveWindowAugmenter | None = None, augment_share: float = 0.0,
+                 augmenter: WaveWindowAugmenter | AugmentedWindowBank | None = None, augment_share: float = 0.0,
                  real: RealNeutralWindows | None = None) -> None:
         if not 0.0 <= augment_share <= 1.0:
             raise ValueError(f"augment_share {augment_share} is not in [0, 1]")

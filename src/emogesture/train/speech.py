@@ -16,7 +16,8 @@ from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.config import changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import RealNeutralWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
+from emogesture.data.datasets import (AugmentedWindowBank, RealNeutralWindows, SpeechQuadrupleDataset,
+                                      WaveWindowAugmenter)
 from emogesture.data.real_speech import load_training_voice
 from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.errors import ConfigError
@@ -54,6 +55,13 @@ class SpeechTrainConfig:
     #: The waveforms are read from the corpus the cache was prepared from. 0 = off.
     wave_augment: float = 0.0
     wave: WaveAugmentConfig = field(default_factory=WaveAugmentConfig)
+    #: Augmented variants of each training window, made once before training (0: every augmented window
+    #: drawn afresh, in the data workers). With ``K`` > 0, ``K`` draws of the augmented conditions per window
+    #: are made in parallel on every core and kept in memory (float16; about 2 GB for 1200 windows at 8), and
+    #: an augmented window is one of them, drawn per item; the fbank masks, noise and shifts are still drawn
+    #: afresh, and the real voices' windows too. On a CPU this takes the waveform augmentation, most of a
+    #: step's work, off the training steps (:class:`emogesture.data.datasets.AugmentedWindowBank`).
+    wave_variants: int = 0
     #: Real voices read without acted emotion, by name (:data:`emogesture.data.real_speech.TRAINING_VOICES`;
     #: empty: none, the corpus alone). Each quadruple brings one window of them, heard through the same
     #: augmented conditions (``wave_augment``), and the emotion encoder's classifier learns to hear it as
@@ -76,9 +84,9 @@ class SpeechTrainConfig:
     noise_std: float = 0.05
     max_shift: int = 10
     samples_per_epoch: int = 4096
-    #: Data-loading processes. With ``wave_augment`` the waveform augmentation is most of a step on a
-    #: CPU, and workers do it beside the training (2 workers on 2 cores: a step about 30 % faster); what
-    #: is drawn does not depend on how many there are.
+    #: Data-loading processes. With ``wave_augment`` (and no ``wave_variants``) the waveform augmentation
+    #: is most of a step on a CPU, and workers do it beside the training (2 workers on 2 cores: a step about
+    #: 30 % faster); what is drawn does not depend on how many there are.
     num_workers: int = 0
     #: Cache splits the model learns from. ``["train", "val"]`` adds the validation texts (never the test
     #: texts): with few texts per emotion, more texts is what helps emotion recognition generalise.
@@ -108,7 +116,7 @@ class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
                  wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = (),
-                 real_emotion_share: float = 0.0):
+                 real_emotion_share: float = 0.0, wave_variants: int = 0):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -121,8 +129,11 @@ class SpeechDataModule(L.LightningDataModule):
         scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
         real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
                                    real_emotion_share, scale) if real_neutral else None)
-        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
-                                              augmenter if wave_augment > 0 else None, wave_augment, real)
+        heard = None
+        if wave_augment > 0:
+            heard = AugmentedWindowBank(augmenter, wave_variants, seed) if wave_variants > 0 else augmenter
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, heard,
+                                              wave_augment, real)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
@@ -253,6 +264,8 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
     """Data module, Lightning module and export function of one run."""
     if not 0.0 <= config.wave_augment <= 1.0:
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
+    if config.wave_variants < 0 or (config.wave_variants > 0 and config.wave_augment == 0):
+        raise ConfigError(f"wave_variants {config.wave_variants}: must be >= 0, and needs wave_augment > 0")
     if not 0.0 <= config.real_emotion_share <= 1.0:
         raise ConfigError(f"real_emotion_share {config.real_emotion_share}: a share of the real windows, 0-1")
     if config.real_neutral_weight < 0 or config.real_neutral_pull < 0:
@@ -264,7 +277,7 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
                             config.train_splits, config.wave_augment, config.wave, config.real_neutral,
-                            config.real_emotion_share)
+                            config.real_emotion_share, config.wave_variants)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
