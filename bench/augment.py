@@ -82,8 +82,8 @@ def measure(repeats: int) -> dict:
 def markdown(result: dict) -> str:
     lines = ["| transform, one 10-s window | ms |", "|---|---|"]
     lines += [f"| {k} | {v} |" for k, v in result["transforms_ms"].items()]
-    lines += ["", "| recipe stage | windows augmented | ms per window | windows/s per core | core-s per step (64 windows) |",
-              "|---|---|---|---|---|"]
+    lines += ["", "| recipe stage | windows augmented | ms per window | windows/s per core | "
+              "core-s per step (64 windows) |", "|---|---|---|---|---|"]
     lines += [f"| {k} | {v['augmented_share']:.0%} | {v['ms_per_window']} | {v['windows_per_s_per_core']} | "
               f"{v['core_s_per_step']} |" for k, v in result["stages"].items()]
     return "\n".join(lines) + "\n"

@@ -142,8 +142,8 @@ def test_a_bank_of_augmented_variants_trains_and_needs_augmentation(cache, tmp_p
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert json.loads((run / "run.json").read_text())["config"]["wave_variants"] == 2
-    bad = subprocess.run(cli(*TRAIN, "--data", cache, "--out", tmp_path / "bad", "--steps", 1, "--set", "wave_variants=2"),
-                         capture_output=True, text=True)
+    bad = subprocess.run(cli(*TRAIN, "--data", cache, "--out", tmp_path / "bad", "--steps", 1,
+                             "--set", "wave_variants=2"), capture_output=True, text=True)
     assert bad.returncode != 0 and "wave_variants 2" in bad.stderr and "Traceback" not in bad.stderr
 
 

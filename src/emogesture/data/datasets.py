@@ -84,7 +84,8 @@ _BANK_AUGMENTER: WaveWindowAugmenter | None = None
 
 class AugmentedWindowBank:
     """Each window of an augmenter's split heard through ``variants`` draws of the augmented conditions, made
-    once, before training, in ``processes`` forked processes (None: one per core); called like the augmenter
+    once, before training, in ``processes`` forked processes (None: one per core; with ``progress``, a bar on a
+    terminal); called like the augmenter
     (``bank(j, rng)``), it gives one of window ``j``'s variants, chosen by ``rng``.
 
     Variant ``v`` of window ``j`` is drawn from ``default_rng([seed, VARIANT_STREAM, j, v])``: the same bank
@@ -111,7 +112,8 @@ class AugmentedWindowBank:
         processes = processes or len(os.sched_getaffinity(0))
         _BANK_AUGMENTER = augmenter
         try:
-            with tqdm(total=len(jobs), desc="augmented windows", unit="window", disable=not progress) as bar:
+            with tqdm(total=len(jobs), desc="augmented windows", unit="window",
+                      disable=None if progress else True) as bar:
                 if processes == 1:
                     self._fill(jobs, map(_variant_fbank, jobs), bar)
                 else:
