@@ -23,7 +23,5 @@ STAGE=(--data "$CACHE" --init-from "$BASE" --losses adversarial --steps 500 --ch
 speech_more pitch 2 --set wave.pitch=0.5 --set wave.pitch_semitones=3 --set num_workers=2
 speech_calibrated pitch_calibrated "$RUN/pitch"
 MODELS=(base="$BASE" control="$CONTROL" pitch="$RUN/pitch_calibrated")
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
 .venv/bin/python experiments/perception_shift.py "$RUN/pitch_calibrated" "$CACHE" "$REPORT/perception_pitch" val
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"

@@ -32,12 +32,7 @@ speech_calibrated base_means "$BASE" --real-voices "$REAL_VOICES"
 speech_calibrated pitch_means "$PITCH" --real-voices "$REAL_VOICES"
 speech_calibrated emotions_means "$EMOTIONS" --real-voices "$REAL_VOICES"
 speech_calibrated both_means "$RUN/both" --real-voices "$REAL_VOICES"
-for name in pitch_means both_means; do
-    [ -f "$REPORT/perception_$name/perception_shift.md" ] || \
-        .venv/bin/python experiments/perception_shift.py "$RUN/$name" "$CACHE" "$REPORT/perception_$name" val
-done
+perception_val pitch_means both_means
 MODELS=(base_means="$RUN/base_means" pitch_means="$RUN/pitch_means" emotions_means="$RUN/emotions_means"
         both_means="$RUN/both_means")
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"

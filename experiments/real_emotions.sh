@@ -35,6 +35,4 @@ for name in emotions emotions_pull; do
 done
 MODELS=(base="$BASE" control="$CONTROL" emotions="$RUN/emotions_calibrated"
         emotions_pull="$RUN/emotions_pull_calibrated")
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"

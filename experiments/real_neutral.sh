@@ -36,6 +36,4 @@ done
 .venv/bin/python experiments/perception_shift.py "$BASE" "$CACHE" "$REPORT/perception_base" val
 MODELS=(base="$BASE" control="$RUN/control_calibrated" anchored="$RUN/anchored_calibrated"
         anchored_pull="$RUN/anchored_pull_calibrated")
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"

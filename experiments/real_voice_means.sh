@@ -32,13 +32,8 @@ speech_calibrated base_means_telephone "$BASE" --real-voices "$TELEPHONE_VOICES"
 speech_calibrated emotions_means "$EMOTIONS" --real-voices "$REAL_VOICES"
 speech_calibrated anchored6_calibrated "$RUN/anchored6"
 speech_calibrated anchored6_means "$RUN/anchored6" --real-voices "$REAL_VOICES"
-for name in base_means base_means_telephone emotions_means anchored6_calibrated anchored6_means; do
-    [ -f "$REPORT/perception_$name/perception_shift.md" ] || \
-        .venv/bin/python experiments/perception_shift.py "$RUN/$name" "$CACHE" "$REPORT/perception_$name" val
-done
+perception_val base_means base_means_telephone emotions_means anchored6_calibrated anchored6_means
 MODELS=(base="$RUN/base" base_means="$RUN/base_means" base_means_telephone="$RUN/base_means_telephone"
         emotions="$WORK/real_emotions/emotions_calibrated" emotions_means="$RUN/emotions_means"
         anchored6="$RUN/anchored6_calibrated" anchored6_means="$RUN/anchored6_means")
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"

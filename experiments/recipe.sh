@@ -40,6 +40,22 @@ speech_calibrated() {  # NAME MODEL [--real-voices ...] : MODEL's emotion percep
     [ -f "$RUN/$name/model.json" ] || $EG calibrate speech --model "$model" --data "$CACHE" --out "$RUN/$name" "$@"
 }
 
+perception_val() {  # NAME... : perception_shift.py on val for each calibrated speech model $RUN/NAME into
+    # $REPORT/perception_NAME, unless its report is there
+    local name
+    for name in "$@"; do
+        [ -f "$REPORT/perception_$name/perception_shift.md" ] || \
+            .venv/bin/python experiments/perception_shift.py "$RUN/$name" "$CACHE" "$REPORT/perception_$name" val
+    done
+}
+
+real_reports() {  # NAME=SPEECH_MODEL... : the real recordings at three gains (real_perception.py) and given each
+    # emotion's prosody (real_voice_emotions.py), per model, into $REPORT; $RUN's training times beside them
+    .venv/bin/python experiments/real_perception.py "$REPORT/real" "$@"
+    .venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "$@"
+    cp "$RUN/times.txt" "$REPORT/training_time.txt"
+}
+
 timed() {  # times.txt name command... : runs a training step and appends its wall time to times.txt
     local times=$1 name=$2 start
     shift 2

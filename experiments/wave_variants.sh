@@ -33,10 +33,7 @@ for k in "${COUNTS[@]}"; do
         speech --data "$CACHE" --init-from "$run/speech" --out "$run/speech_tuned" --losses adversarial --steps 700 \
         --checkpoint-every 100 "${SPEECH_HARD[@]}" "${variants[@]}" --quiet
     speech_calibrated "variants${k}_means" "$run/speech_tuned" --real-voices "$REAL_VOICES"
-    [ -f "$REPORT/perception_variants${k}_means/perception_shift.md" ] || .venv/bin/python \
-        experiments/perception_shift.py "$RUN/variants${k}_means" "$CACHE" "$REPORT/perception_variants${k}_means" val
+    perception_val "variants${k}_means"
     MODELS+=("variants${k}_means=$RUN/variants${k}_means")
 done
-.venv/bin/python experiments/real_perception.py "$REPORT/real" "${MODELS[@]}"
-.venv/bin/python experiments/real_voice_emotions.py "$REPORT/real_voice_emotions" "${MODELS[@]}"
-cp "$RUN/times.txt" "$REPORT/training_time.txt"
+real_reports "${MODELS[@]}"
