@@ -84,9 +84,9 @@ _BANK_AUGMENTER: WaveWindowAugmenter | None = None
 
 class AugmentedWindowBank:
     """Each window of an augmenter's split heard through ``variants`` draws of the augmented conditions, made
-    once, before training, in ``processes`` forked processes (None: one per core; with ``progress``, a bar on a
-    terminal); called like the augmenter
-    (``bank(j, rng)``), it gives one of window ``j``'s variants, chosen by ``rng``.
+    once, before training, in ``processes`` forked processes (None: one per core; with ``progress``, a bar on
+    a terminal). Called like the augmenter (``bank(j, rng)``), it gives one of window ``j``'s variants, chosen
+    by ``rng``.
 
     Variant ``v`` of window ``j`` is drawn from ``default_rng([seed, VARIANT_STREAM, j, v])``: the same bank
     whatever the number of processes. The variants are kept in memory as float16 fbank windows
