@@ -129,11 +129,16 @@ class SpeechDataModule(L.LightningDataModule):
         scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
         real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
                                    real_emotion_share, scale) if real_neutral else None)
-        heard = None
-        if wave_augment > 0:
-            heard = AugmentedWindowBank(augmenter, wave_variants, seed) if wave_variants > 0 else augmenter
-        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, heard,
-                                              wave_augment, real)
+        self.wave_variants = wave_variants
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
+                                              augmenter if wave_augment > 0 else None, wave_augment, real)
+
+    def setup(self, stage: str) -> None:
+        """With ``wave_variants``, the augmented-window bank is made here: after the run's checks, before the
+        first step (minutes of work that a refused run should not wait for)."""
+        heard = self.dataset.augmenter
+        if self.wave_variants > 0 and isinstance(heard, WaveWindowAugmenter):
+            self.dataset.augmenter = AugmentedWindowBank(heard, self.wave_variants, self.seed)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
