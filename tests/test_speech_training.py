@@ -147,6 +147,24 @@ def test_a_bank_of_augmented_variants_trains_and_needs_augmentation(cache, tmp_p
     assert bad.returncode != 0 and "wave_variants 2" in bad.stderr and "Traceback" not in bad.stderr
 
 
+def test_the_banks_bar_shows_on_a_terminal_unless_quiet(cache, monkeypatch):
+    import io
+    import sys
+
+    from emogesture.train.speech import SpeechDataModule
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    for progress in (True, False):
+        err = Terminal()
+        monkeypatch.setattr(sys, "stderr", err)
+        data = SpeechDataModule(cache, 2, 8, 0, wave_augment=0.5, wave_variants=1, progress=progress)
+        data.setup("fit")
+        assert ("augmented windows" in err.getvalue()) == progress
+
+
 def test_two_process_ddp_gives_identical_weights(cache, tmp_path):
     run = tmp_path / "ddp"
     out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 3, "--devices", 2),

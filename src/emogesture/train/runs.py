@@ -70,7 +70,8 @@ def train_speech(data: str | PathLike[str], out: str | PathLike[str], *, preset:
                          base=to_dict(SpeechTrainConfig.preset(preset, losses)))
     if init_from is not None:
         config.init_from = str(Path(init_from).resolve())
-    return run_training("train speech", config, build, data, out, options or RunOptions())
+    options = options or RunOptions()
+    return run_training("train speech", config, lambda c, d, s: build(c, d, s, options.progress), data, out, options)
 
 
 def train_extractor(data: str | PathLike[str], out: str | PathLike[str], *, preset: str = "tiny",

@@ -116,7 +116,7 @@ class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
                  wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = (),
-                 real_emotion_share: float = 0.0, wave_variants: int = 0):
+                 real_emotion_share: float = 0.0, wave_variants: int = 0, progress: bool = True):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -129,7 +129,7 @@ class SpeechDataModule(L.LightningDataModule):
         scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
         real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
                                    real_emotion_share, scale) if real_neutral else None)
-        self.wave_variants = wave_variants
+        self.wave_variants, self.progress = wave_variants, progress
         self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
                                               augmenter if wave_augment > 0 else None, wave_augment, real)
 
@@ -138,7 +138,8 @@ class SpeechDataModule(L.LightningDataModule):
         first step (minutes of work that a refused run should not wait for)."""
         heard = self.dataset.augmenter
         if self.wave_variants > 0 and isinstance(heard, WaveWindowAugmenter):
-            self.dataset.augmenter = AugmentedWindowBank(heard, self.wave_variants, self.seed)
+            self.dataset.augmenter = AugmentedWindowBank(heard, self.wave_variants, self.seed,
+                                                        progress=self.progress)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(self.dataset, batch_size=self.batch_size, shuffle=False, drop_last=True,
@@ -265,8 +266,9 @@ def speech_model_metadata(cache, speakers: list[int], step: int, train_splits: l
                           train_splits=list(train_splits), step=step)
 
 
-def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
-    """Data module, Lightning module and export function of one run."""
+def build(config: SpeechTrainConfig, cache_dir: Path, seed: int, progress: bool = True):
+    """Data module, Lightning module and export function of one run (``progress``: a bar while the
+    augmented-window bank is made)."""
     if not 0.0 <= config.wave_augment <= 1.0:
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
     if config.wave_variants < 0 or (config.wave_variants > 0 and config.wave_augment == 0):
@@ -282,7 +284,7 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int):
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
                             config.train_splits, config.wave_augment, config.wave, config.real_neutral,
-                            config.real_emotion_share, config.wave_variants)
+                            config.real_emotion_share, config.wave_variants, progress)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
