@@ -2,9 +2,10 @@
 # Rebuilds the model bundled with the package (src/emogesture/assets/model/) from scratch, with the
 # project's own recipe, on the experiments' synthetic corpus (common.sh: 30 voices, split by text and by
 # speaker); `make model` runs it. Every step resumes when re-run (finished trainings are not redone).
-# About 110 min on 2 CPU cores (the second speech stage measured whole with its data workers, the first
-# on an 80-step run; the bundled model's own build, before them, took about 135 min, its trainings in
-# reports/bundled_model/training_time.txt).
+# About 75 min of training on 2 CPU cores (the speech stages 21 and about 18 min with their banks of
+# augmented windows, the extractor 6 min beside the first, the gesture model 32 min), then about 10 min of
+# calibration and scoring; the bundled model's own build, partly run beside other work, is in
+# reports/bundled_model/training_time.txt.
 #   1.–5. recipe.sh: the speech model in two stages, the extractor M and the gesture model, trained on the
 #      train texts of the train speakers only; the emotion perception and the fallback style calibrated on
 #      val; the bundle (float16 weights) with the tiny preset's generation settings;

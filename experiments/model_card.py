@@ -231,18 +231,18 @@ Only the project's **synthetic corpus** (`emogesture corpus --speakers 30`, vers
 - speech model: `--losses adversarial`, 1300 steps, half of its windows heard through augmented
   recording conditions (`--set wave_augment=0.5`: rooms, noise, microphones, telephone, voice and
   tempo shifts), then 700 more from there (`--init-from`, learning rate 5e-4) with three quarters of
-  its windows augmented, voices moved by up to 6 semitones and more level changes, **train split only**;
+  its windows augmented, voices moved by up to 6 semitones, the pitch alone moved by up to 3 semitones
+  (formants kept) in half of the augmented windows and more level changes, **train split only**; each
+  stage's augmented windows made once before it, 16 variants of each window (`--set wave_variants=16`);
 - extractor M: 600 steps, train split;
 - gesture model: joint training, {gesture_steps} steps (450 prior-only first), train split; its residual noise
   and the speech model's emotion perception are calibrated on the **val** split, which no model
   trained on;
 - every number below is on the **test** split (held out from all of it), scored once.
 
-Training wall time on 2 CPU cores: {"; ".join(card["training_seconds"])} (the speech model's
-windows were then augmented in its training process; the recipe now does it in two data workers, which
-draw the same windows, and its speech stages run about 40 % faster).
+Training wall time on 2 CPU cores: {"; ".join(card["training_seconds"])}.
 
-Rebuild from scratch (about 110 minutes on 2 cores):
+Rebuild from scratch (about 85 minutes on 2 cores, 75 of them training):
 
 ```bash
 {REBUILD}

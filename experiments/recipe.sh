@@ -7,7 +7,9 @@
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
 #      then trained on from there for 700 steps (lr 5e-4) with three quarters of its windows augmented,
-#      voices moved by up to 6 semitones and more level changes (`speech_tuned`, the one used below);
+#      voices moved by up to 6 semitones, half of the augmented windows' pitch moved alone by up to 3
+#      semitones and more level changes (`speech_tuned`, the one used below); each stage's augmented
+#      windows made once before it, 16 variants per window (`wave_variants`);
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
 #   4. the speech model's emotion perception (class means on train and of three real voices given each
@@ -22,6 +24,11 @@ SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semit
 # the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
 # the perception's calibration gives each emotion a mean of theirs too (4.); real_neutral.sh trains on them
 REAL_VOICES="fr_june, it_carlo, ru_ivr"
+# both speech stages: each training window's augmented recordings made once, 16 variants (wave_variants.sh)
+SPEECH_VARIANTS=(--set wave_variants=16)
+# the second stage: the pitch alone moved too (pitch_alone.sh), formants kept, as people's pitch differs
+# around their vocal tracts more than the corpus's speakers' does
+SPEECH_PITCH=(--set wave.pitch=0.5 --set wave.pitch_semitones=3)
 
 speech_more() {  # NAME THREADS [--set ...] : 500 speech steps more into $RUN/NAME with the caller's STAGE
     # arguments (an array: data, starting model, settings), unless done; its wall time to $RUN/times.txt
@@ -73,15 +80,15 @@ train_gesture() {  # OUT CACHE SPEECH TIMES NAME : the recipe's gesture model (2
 train_bundle() {  # RUN CACHE
     local run=$1 cache=$2 todo=() pids=() threads model pid speech
     mkdir -p "$run"
-    # the speech model and the extractor side by side, one thread each (two for one left alone); the speech
-    # model's windows are augmented in 2 data workers beside its one training thread (the same draws)
+    # the speech model and the extractor side by side (the speech model's augmented windows made first, on
+    # every core), one thread for the extractor (two when left alone)
     grep -qs '"step": 1300' "$run/speech/model.json" || todo+=(speech)
     grep -qs '"step": 600' "$run/extractor/model.json" || todo+=(extractor)
     threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
     for model in "${todo[@]}"; do
         if [ "$model" = speech ]; then
             timed "$run/times.txt" speech $EG train speech --data "$cache" --out "$run/speech" --losses adversarial \
-                --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 --set num_workers=2 --quiet &
+                --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 "${SPEECH_VARIANTS[@]}" --quiet &
         else
             OMP_NUM_THREADS=$threads timed "$run/times.txt" extractor $EG train extractor --data "$cache" \
                 --out "$run/extractor" --steps 600 --checkpoint-every 100 --quiet &
@@ -92,7 +99,7 @@ train_bundle() {  # RUN CACHE
     speech=$run/speech_tuned
     grep -qs '"step": 700' "$speech/model.json" || timed "$run/times.txt" speech_tuned $EG train speech \
         --data "$cache" --init-from "$run/speech" --out "$speech" --losses adversarial --steps 700 \
-        --checkpoint-every 100 "${SPEECH_HARD[@]}" --set num_workers=2 --quiet
+        --checkpoint-every 100 "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_VARIANTS[@]}" --quiet
     train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle

@@ -90,7 +90,7 @@ class AugmentedWindowBank:
 
     Variant ``v`` of window ``j`` is drawn from ``default_rng([seed, VARIANT_STREAM, j, v])``: the same bank
     whatever the number of processes. The variants are kept in memory as float16 fbank windows
-    (``[N, variants, frames, n_mels]``: about 2 GB for 1200 windows and 8 variants) and shared with the data
+    (``[N, variants, frames, n_mels]``: about 2.5 GB for 1200 windows and 8 variants) and shared with the data
     workers. On a CPU, the waveform augmentation is most of a training step's work when it is drawn afresh;
     a bank does it once per variant instead of once per use.
     """
