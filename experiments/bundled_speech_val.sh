@@ -22,9 +22,7 @@ speech_calibrated speech_calibrated "$RUN/speech_tuned" --real-voices "$REAL_VOI
 speech_calibrated base_means "$BASE" --real-voices "$REAL_VOICES"
 SEED1=$WORK/bundled_seed1
 mkdir -p "$SEED1"
-grep -qs '"step": 700' "$SEED1/speech_tuned/model.json" || timed "$SEED1/times.txt" speech_tuned $EG train speech \
-    --data "$CACHE" --init-from "$RUN/speech" --out "$SEED1/speech_tuned" --losses adversarial --steps 700 \
-    --checkpoint-every 100 "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_VARIANTS[@]}" --seed 1 --quiet
+speech_second_stage "$SEED1/speech_tuned" "$RUN/speech" "$CACHE" "$SEED1/times.txt" --seed 1
 speech_calibrated seed1_calibrated "$SEED1/speech_tuned" --real-voices "$REAL_VOICES"
 perception_val base_means speech_calibrated seed1_calibrated
 real_reports base_means="$RUN/base_means" bundled="$RUN/speech_calibrated" seed1="$RUN/seed1_calibrated"

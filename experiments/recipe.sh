@@ -77,6 +77,15 @@ train_gesture() {  # OUT CACHE SPEECH TIMES NAME : the recipe's gesture model (2
         --speech "$speech" --out "$out" --steps 2400 --checkpoint-every 200 --quiet
 }
 
+speech_second_stage() {  # OUT FIRST CACHE TIMES [option ...] : the recipe's second speech stage, 700 steps on
+    # from the first stage FIRST, into OUT unless it is there; its wall time to TIMES
+    local out=$1 first=$2 cache=$3 times=$4
+    shift 4
+    grep -qs '"step": 700' "$out/model.json" || timed "$times" speech_tuned $EG train speech --data "$cache" \
+        --init-from "$first" --out "$out" --losses adversarial --steps 700 --checkpoint-every 100 \
+        "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_VARIANTS[@]}" "$@" --quiet
+}
+
 train_bundle() {  # RUN CACHE
     local run=$1 cache=$2 todo=() pids=() threads model pid speech
     mkdir -p "$run"
@@ -97,9 +106,7 @@ train_bundle() {  # RUN CACHE
     done
     for pid in "${pids[@]}"; do wait "$pid"; done
     speech=$run/speech_tuned
-    grep -qs '"step": 700' "$speech/model.json" || timed "$run/times.txt" speech_tuned $EG train speech \
-        --data "$cache" --init-from "$run/speech" --out "$speech" --losses adversarial --steps 700 \
-        --checkpoint-every 100 "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_VARIANTS[@]}" --quiet
+    speech_second_stage "$speech" "$run/speech" "$cache" "$run/times.txt"
     train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
