@@ -293,7 +293,9 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   distances of held-out val windows. Beyond a threshold the window's emotion is blended toward the
   neutral mean, fully at twice the threshold, and a voice unlike every training voice has its gesture
   style blended toward a fallback style, so that the motion stays like the motion the model learned;
-  the message says so. {fallback_text} `--emotion own` keeps the raw
+  the message says so. {fallback_text} A recording in steady background noise (its loud and quiet
+  frames less than 20 dB apart) is heard with that noise subtracted first, in proportion to how noisy it
+  is (the generation setting `noise_suppression`; the white-noise row below). `--emotion own` keeps the raw
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;

@@ -55,6 +55,9 @@ class GenerationConfig:
     seam_candidates: int = 4
     #: Seconds between the starts of a long audio's 10-s windows (7: neighbours overlap by 3 s).
     hop_seconds: float = 7.0
+    #: Whether the speech model hears a noisy recording with its steady background noise taken out
+    #: (:mod:`emogesture.audio.noise`; a recording in quiet surroundings is heard as it is either way).
+    noise_suppression: bool = True
 
     def __post_init__(self) -> None:
         if self.num_inference_steps < 1 or self.seam_candidates < 1:

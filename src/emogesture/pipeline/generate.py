@@ -126,12 +126,15 @@ class GesturePipeline:
 
     def encode(self, waveform: np.ndarray, hop_seconds: float | None = None,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
-               parts: tuple[str, ...] = LATENT_PARTS) -> tuple[EncodedWindows, list[float]]:
+               parts: tuple[str, ...] = LATENT_PARTS, generation: GenerationConfig | None = None
+               ) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` (None: the
-        pipeline's setting), and their starts (s); ``parts``: the latents wanted (default all three; an edit
-        source needs fewer)."""
-        hop = self.generation.hop_seconds if hop_seconds is None else hop_seconds
-        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts)
+        settings' hop), and their starts (s); ``parts``: the latents wanted (default all three; an edit
+        source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``)."""
+        settings = generation or self.generation
+        hop = settings.hop_seconds if hop_seconds is None else hop_seconds
+        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts,
+                                  noise_suppression=settings.noise_suppression)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -225,7 +228,7 @@ class GesturePipeline:
         generator, so the result does not depend on how many are drawn together).
         """
         settings = self.settings(generation, seam_candidates, hop_seconds)
-        enc, starts_s = encoded if encoded is not None else self.encode(waveform, settings.hop_seconds, times=times)
+        enc, starts_s = encoded if encoded is not None else self.encode(waveform, times=times, generation=settings)
         conds = self.conditions(enc, edit, emotion_mode, starts_s, len(waveform) / TARGET_SAMPLE_RATE)
         starts = [int(round(s * self.fps)) for s in starts_s]
         n = len(starts)

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, fbank_windows, kaldi_fbank, normalise_fbank,
-                              normalise_recording, window_starts)
+from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression, fbank_windows, kaldi_fbank,
+                              normalise_fbank, normalise_recording, suppress_noise, window_starts)
 from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
@@ -54,7 +54,9 @@ MAX_ENCODER_BATCH = 32
 
 class SpeechLatentEncoder:
     """A frozen speech model in eval mode: deterministic, batched, no gradients; ``precision`` ``fp32``,
-    ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`)."""
+    ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`). A recording it encodes has its steady
+    background noise taken out first where it is noisy (:mod:`emogesture.audio.noise`; ``noise_suppression``
+    None: never)."""
 
     def __init__(self, loaded: LoadedModel, device: str = "cpu", precision: str = "fp32") -> None:
         self.loaded = loaded
@@ -68,6 +70,7 @@ class SpeechLatentEncoder:
         self.fbank_config = from_dict(FbankConfig, prep["fbank"]) if "fbank" in prep else FbankConfig()
         self.recording_norm = prep.get("recording_norm", "none")
         self.window_frames = loaded.config.encoder.input_frames
+        self.noise_suppression: NoiseSuppression | None = NoiseSuppression()
 
     @classmethod
     def from_run(cls, path: str | PathLike[str], device: str = "cpu", precision: str = "fp32") -> "SpeechLatentEncoder":
@@ -131,14 +134,19 @@ class SpeechLatentEncoder:
 
     def encode(self, waveform: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE, hop_seconds: float = 5.0,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
-               parts: tuple[str, ...] = LATENT_PARTS) -> tuple[EncodedWindows, list[float]]:
+               parts: tuple[str, ...] = LATENT_PARTS, noise_suppression: bool = True
+               ) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).
         ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it;
-        ``parts``: the latents wanted (an edit source needs only its emotion or its style)."""
+        ``parts``: the latents wanted (an edit source needs only its emotion or its style);
+        ``noise_suppression``: False hears a noisy recording with its noise (class docstring)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         with maybe_stage(times, "fbank"):
-            fb = normalise_recording(kaldi_fbank(waveform, self.fbank_config), self.recording_norm)
+            fb = kaldi_fbank(waveform, self.fbank_config)
+            if noise_suppression and self.noise_suppression is not None:
+                fb = suppress_noise(fb, self.noise_suppression)
+            fb = normalise_recording(fb, self.recording_norm)
             fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
             starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
             frames = [int(round(s * FBANK_RATE)) for s in starts]

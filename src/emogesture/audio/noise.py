@@ -1,0 +1,91 @@
+"""Steady background noise taken out of a recording's log-mel fbank before the speech model hears it.
+
+A fan, a hiss or a distant road fills every pause of a recording, and a speech model that has heard its
+voices in quiet rooms reads that floor as part of the voice (in white noise at 10 dB SNR the held-out
+voices' emotion was heard right in 0.71 of the windows, against 0.89 as recorded). Spectral subtraction
+in the mel domain takes it out: each mel bin's noise power is estimated as a low quantile of that bin's
+power over the whole recording (the pauses), and ``over_subtraction`` times it is subtracted from every
+frame, never below ``floor``² of the frame's own power (the spectral floor keeps the residue from
+turning into the isolated spikes of "musical noise").
+
+Only a noisy recording is changed. How noisy is read from the recording's *dynamic range*: the distance
+in dB between its loud frames (95th percentile of the frames' mean mel power) and its quiet ones (10th
+percentile). Speech recorded in a quiet room, reverberant or not, spans 23 dB or more (the corpus's
+voices 27–49 dB through every change the robustness reports make but noise; the real recordings of the
+checks 41–76 dB), speech in white noise at 10 dB SNR 4–12 dB. The subtraction is full below
+``full_below_db``, none above ``off_above_db`` and scaled linearly between, so a recording in range is
+returned as it is, bit for bit, and no bin is taken below Kaldi's log floor. Recordings shorter than ``min_seconds`` (the first seconds of a live
+stream) are left alone: their quantiles say little about the pauses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from emogesture.audio.windows import FBANK_FRAMES_PER_SECOND, LOG_FLOOR
+
+__all__ = ["NoiseSuppression", "dynamic_range_db", "suppress_noise"]
+
+Array = np.ndarray | torch.Tensor
+
+
+@dataclass(frozen=True)
+class NoiseSuppression:
+    """Settings of :func:`suppress_noise` (chosen on the val split's held-out voices in noise)."""
+
+    #: Times the estimated noise power subtracted from each bin (at full strength).
+    over_subtraction: float = 2.0
+    #: Amplitude floor: a bin keeps at least ``floor``² of its power.
+    floor: float = 0.1
+    #: Percentile of a bin's power over the recording taken as its noise power.
+    noise_percentile: float = 10.0
+    #: Full subtraction for a dynamic range (dB) at or below this ...
+    full_below_db: float = 10.0
+    #: ... none at or above this, linear between.
+    off_above_db: float = 20.0
+    #: Recordings shorter than this (seconds) are left alone.
+    min_seconds: float = 5.0
+
+    def __post_init__(self) -> None:
+        if not (self.over_subtraction >= 0 and 0 < self.floor <= 1 and 0 <= self.noise_percentile <= 100
+                and self.full_below_db < self.off_above_db and self.min_seconds >= 0):
+            raise ValueError(f"noise suppression settings out of range: {self}")
+
+
+def _as_array(fbank: Array) -> np.ndarray:
+    x = fbank.detach().cpu().numpy() if isinstance(fbank, torch.Tensor) else np.asarray(fbank)
+    return x.astype(np.float64)
+
+
+def dynamic_range_db(fbank: Array) -> float:
+    """dB between the loud (95th percentile) and quiet (10th) frames' mean mel power of a log-mel fbank
+    ``[F, n_mels]``."""
+    x = _as_array(fbank)
+    top = x.max(1, keepdims=True)
+    frame_power = (top + np.log(np.exp(x - top).mean(1, keepdims=True)))[:, 0]  # log of the mean mel power
+    return float(10.0 / math.log(10.0) * (np.percentile(frame_power, 95) - np.percentile(frame_power, 10)))
+
+
+def suppress_noise(fbank: Array, settings: NoiseSuppression = NoiseSuppression()) -> Array:
+    """One recording's raw log-mel fbank ``[F, n_mels]`` with its steady noise subtracted, scaled by how
+    noisy the recording is (module docstring); a recording in range, or too short, is returned as it is.
+    Returns the same type as ``fbank``."""
+    if len(fbank) < settings.min_seconds * FBANK_FRAMES_PER_SECOND:
+        return fbank
+    span = settings.off_above_db - settings.full_below_db
+    strength = min(max((settings.off_above_db - dynamic_range_db(fbank)) / span, 0.0), 1.0)
+    if strength == 0.0 or settings.over_subtraction == 0.0:
+        return fbank
+    x = _as_array(fbank)
+    noise = np.percentile(x, settings.noise_percentile, axis=0)  # [n_mels], log power
+    # log(max(P − a·N, f²·P)) = x + log(max(1 − a·N/P, f²)), computed in the log domain (no overflow)
+    keep = np.maximum(1.0 - strength * settings.over_subtraction * np.exp(noise[None] - x), settings.floor ** 2)
+    # nothing goes below Kaldi's log floor (digital silence, the mel filter that covers no FFT bin stay there)
+    out = np.where(x <= LOG_FLOOR, x, np.maximum(x + np.log(keep), LOG_FLOOR))
+    if isinstance(fbank, torch.Tensor):
+        return torch.from_numpy(out).to(fbank.dtype)
+    return out.astype(np.asarray(fbank).dtype)

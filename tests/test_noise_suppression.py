@@ -1,0 +1,111 @@
+"""Steady noise taken out of a noisy recording before the speech model hears it; a recording in range untouched."""
+
+import numpy as np
+import pytest
+import torch
+
+from emogesture.audio import NoiseSuppression, dynamic_range_db, kaldi_fbank, suppress_noise
+from emogesture.checkpoints import load_model, save_model
+from emogesture.config import to_dict
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.prepare import PrepareConfig
+from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+from emogesture.pipeline.speech import SpeechLatentEncoder
+
+
+def _speech(seconds: float = 8.0) -> np.ndarray:
+    """Voiced bursts with pauses between them, a quiet floor (about 45 dB below the bursts)."""
+    rng = np.random.default_rng(0)
+    t = np.arange(int(seconds * 16000)) / 16000
+    f0 = 140 + 30 * np.sin(2 * np.pi * 0.7 * t)
+    voiced = sum(np.sin(2 * np.pi * k * np.cumsum(f0) / 16000) / k for k in range(1, 12))
+    return (0.2 * voiced * (np.sin(2 * np.pi * 2.5 * t) > 0.2) + 0.001 * rng.normal(size=t.size)).astype(np.float32)
+
+
+def _noisy(x: np.ndarray, snr_db: float, seed: int = 1) -> np.ndarray:
+    noise = np.random.default_rng(seed).normal(size=x.size)
+    noise *= np.sqrt(np.mean(x ** 2) / np.mean(noise ** 2) / 10 ** (snr_db / 10))
+    return (x + noise).astype(np.float32)
+
+
+def test_a_quiet_recording_is_left_as_it_is():
+    fb = kaldi_fbank(_speech())
+    assert dynamic_range_db(fb) > 25
+    assert suppress_noise(fb) is fb
+
+
+def test_noise_is_taken_out_of_the_pauses_and_the_speech_kept():
+    clean = kaldi_fbank(_speech())
+    noisy = kaldi_fbank(_noisy(_speech(), 10.0))
+    assert dynamic_range_db(noisy) < 15
+    out = suppress_noise(noisy)
+    assert isinstance(out, torch.Tensor) and out.dtype == noisy.dtype and out.shape == noisy.shape
+    loud = clean.mean(1) > np.percentile(clean.mean(1), 70)
+    pause = clean.mean(1) < np.percentile(clean.mean(1), 20)
+    # the pauses fall by about 10 dB (at most the floor's 20 dB, ln 100 = 4.6), the speech's loudest bins hardly move
+    assert float((noisy - out)[pause].mean()) > 1.5
+    floor = torch.quantile(noisy, 0.1, dim=0)
+    strong = loud[:, None] & (clean > floor + np.log(10.0))  # speech 10 dB above the noise: kept within 2 dB
+    assert int(strong.sum()) > 1000 and float((noisy - out)[strong].mean()) < np.log(10 ** 0.2)
+    # the dynamic range comes back toward the clean recording's
+    assert dynamic_range_db(out) > dynamic_range_db(noisy) + 2
+    assert (out - clean).abs().mean() < 0.8 * (noisy - clean).abs().mean()  # 0.69: the floor keeps 20 dB at most
+
+
+def test_strength_follows_the_noise():
+    x = _speech()
+    change = [float((kaldi_fbank(y) - suppress_noise(kaldi_fbank(y))).mean()) for y in
+              (_noisy(x, 0.0), _noisy(x, 30.0), _noisy(x, 40.0))]
+    assert change[0] > change[1] > 0 and change[2] == 0.0  # dynamic range 1.5, 16 and 24 dB
+
+
+def test_short_recordings_arrays_and_settings():
+    noisy = kaldi_fbank(_noisy(_speech(8.0), 10.0))
+    short = noisy[:400]  # 4 s: left alone
+    assert suppress_noise(short) is short
+    as_numpy = suppress_noise(noisy.numpy())
+    assert isinstance(as_numpy, np.ndarray) and as_numpy.dtype == np.float32
+    np.testing.assert_allclose(as_numpy, suppress_noise(noisy).numpy(), atol=1e-5)
+    assert suppress_noise(noisy, NoiseSuppression(over_subtraction=0.0)) is noisy
+    with pytest.raises(ValueError, match="noise suppression settings"):
+        NoiseSuppression(full_below_db=20.0, off_above_db=10.0)
+
+
+def test_the_encoder_hears_noisy_speech_through_the_suppression(tmp_path):
+    torch.manual_seed(0)
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    save_model(tmp_path / "m", "speech", SpeechDisentangler(cfg), cfg, {
+        "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
+        "prepare_config": to_dict(PrepareConfig()), "step": 0})
+    encoder = SpeechLatentEncoder(load_model(tmp_path / "m", "speech"))
+    raw = SpeechLatentEncoder(load_model(tmp_path / "m", "speech"))
+    raw.noise_suppression = None
+    clean, noisy = _speech(), _noisy(_speech(), 10.0)
+    np.testing.assert_array_equal(encoder.encode(clean)[0].emotion, raw.encode(clean)[0].emotion)
+    heard, unheard = encoder.encode(noisy)[0], raw.encode(noisy)[0]
+    assert np.abs(heard.emotion - unheard.emotion).mean() > 1e-3
+    assert np.abs(heard.timing - unheard.timing).mean() > 1e-3  # the timing stream hears the cleaned recording too
+
+
+def test_a_bundle_can_hear_noisy_recordings_as_they_are(tmp_path):
+    from emogesture.models.generation import GenerationConfig
+    from emogesture.pipeline.generate import GesturePipeline
+
+    settings = GenerationConfig.preset("tiny").with_overrides(["noise_suppression=false"])
+    assert settings.noise_suppression is False and GenerationConfig().noise_suppression is True
+    pipe = GesturePipeline.from_run()
+    noisy = _noisy(_speech(12.0), 10.0)
+    on, off = pipe.encode(noisy)[0], pipe.encode(noisy, generation=settings)[0]
+    raw = pipe.speech.encode(noisy, hop_seconds=settings.hop_seconds, noise_suppression=False)[0]
+    np.testing.assert_array_equal(off.emotion, raw.emotion)
+    assert np.abs(on.emotion - off.emotion).mean() > 1e-3
+
+
+def test_silence_stays_at_the_log_floor():
+    from emogesture.audio.windows import LOG_FLOOR
+
+    silence = kaldi_fbank(np.zeros(8 * 16000, np.float32))
+    assert dynamic_range_db(silence) == 0.0
+    assert torch.equal(suppress_noise(silence), silence)
+    gaps = np.concatenate([_noisy(_speech(), 10.0), np.zeros(3 * 16000, np.float32)])
+    assert float(suppress_noise(kaldi_fbank(gaps)).min()) >= LOG_FLOOR - 1e-5
