@@ -109,3 +109,15 @@ def test_silence_stays_at_the_log_floor():
     assert torch.equal(suppress_noise(silence), silence)
     gaps = np.concatenate([_noisy(_speech(), 10.0), np.zeros(3 * 16000, np.float32)])
     assert float(suppress_noise(kaldi_fbank(gaps)).min()) >= LOG_FLOOR - 1e-5
+
+
+def test_generate_says_when_it_took_noise_out(tmp_path):
+    from emogesture.pipeline.generate import GesturePipeline
+
+    pipe = GesturePipeline.from_run()
+    quiet, noisy = _speech(12.0), _noisy(_speech(12.0), 10.0)
+    heard = [pipe.perceive(*pipe.encode(wave), source=name)
+             for wave, name in ((quiet, "quiet.wav"), (noisy, "noisy.wav"))]
+    assert heard[0].noise_suppressed == 0.0 and "background noise" not in heard[0].summary("auto")
+    assert heard[1].noise_suppressed == 1.0 and "steady background noise taken out (100%)" in heard[1].summary("auto")
+    assert '"noise_suppressed": 1.0' in heard[1].to_json()

@@ -18,7 +18,7 @@ from emogesture.audio.fbank import (
 )
 from emogesture.audio.io import TARGET_SAMPLE_RATE, check_speech, load_audio, resample
 from emogesture.audio.mfcc import mfcc_from_log_mel
-from emogesture.audio.noise import NoiseSuppression, dynamic_range_db, suppress_noise
+from emogesture.audio.noise import NoiseSuppression, dynamic_range_db, suppress_noise, suppression_strength
 from emogesture.audio.mel import (
     hz_to_mel_htk,
     hz_to_mel_slaney,
@@ -51,6 +51,7 @@ __all__ = [
     "NoiseSuppression",
     "dynamic_range_db",
     "suppress_noise",
+    "suppression_strength",
     "FBANK_FRAMES_PER_SECOND",
     "FBANK_MEAN",
     "FBANK_STD",

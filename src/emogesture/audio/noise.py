@@ -14,8 +14,9 @@ percentile). Speech recorded in a quiet room, reverberant or not, spans 23 dB or
 voices 27–49 dB through every change the robustness reports make but noise; the real recordings of the
 checks 41–76 dB), speech in white noise at 10 dB SNR 4–12 dB. The subtraction is full below
 ``full_below_db``, none above ``off_above_db`` and scaled linearly between, so a recording in range is
-returned as it is, bit for bit, and no bin is taken below Kaldi's log floor. Recordings shorter than ``min_seconds`` (the first seconds of a live
-stream) are left alone: their quantiles say little about the pauses.
+returned as it is, bit for bit; no bin is taken below Kaldi's log floor. Recordings shorter than
+``min_seconds`` (the first seconds of a live stream) are left alone: their quantiles say little about
+the pauses.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import torch
 
 from emogesture.audio.windows import FBANK_FRAMES_PER_SECOND, LOG_FLOOR
 
-__all__ = ["NoiseSuppression", "dynamic_range_db", "suppress_noise"]
+__all__ = ["NoiseSuppression", "dynamic_range_db", "suppress_noise", "suppression_strength"]
 
 Array = np.ndarray | torch.Tensor
 
@@ -70,15 +71,22 @@ def dynamic_range_db(fbank: Array) -> float:
     return float(10.0 / math.log(10.0) * (np.percentile(frame_power, 95) - np.percentile(frame_power, 10)))
 
 
+def suppression_strength(fbank: Array, settings: NoiseSuppression = NoiseSuppression()) -> float:
+    """How much of its noise :func:`suppress_noise` takes out of a recording's log-mel fbank ``[F, n_mels]``:
+    1 at a dynamic range of ``full_below_db`` or less, 0 from ``off_above_db`` on (and for a recording
+    shorter than ``min_seconds`` or no subtraction at all), linear between."""
+    if len(fbank) < settings.min_seconds * FBANK_FRAMES_PER_SECOND or settings.over_subtraction == 0.0:
+        return 0.0
+    span = settings.off_above_db - settings.full_below_db
+    return min(max((settings.off_above_db - dynamic_range_db(fbank)) / span, 0.0), 1.0)
+
+
 def suppress_noise(fbank: Array, settings: NoiseSuppression = NoiseSuppression()) -> Array:
     """One recording's raw log-mel fbank ``[F, n_mels]`` with its steady noise subtracted, scaled by how
-    noisy the recording is (module docstring); a recording in range, or too short, is returned as it is.
-    Returns the same type as ``fbank``."""
-    if len(fbank) < settings.min_seconds * FBANK_FRAMES_PER_SECOND:
-        return fbank
-    span = settings.off_above_db - settings.full_below_db
-    strength = min(max((settings.off_above_db - dynamic_range_db(fbank)) / span, 0.0), 1.0)
-    if strength == 0.0 or settings.over_subtraction == 0.0:
+    noisy the recording is (:func:`suppression_strength`); a recording in range, or too short, is returned
+    as it is. Returns the same type as ``fbank``."""
+    strength = suppression_strength(fbank, settings)
+    if strength == 0.0:
         return fbank
     x = _as_array(fbank)
     noise = np.percentile(x, settings.noise_percentile, axis=0)  # [n_mels], log power

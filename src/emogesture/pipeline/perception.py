@@ -312,6 +312,8 @@ class PerceivedEmotion:
     in_force: list[dict[str, float]] | None = None
     #: [W] per window, the posterior of the real voices' means (None: the calibration has none)
     real_voices: np.ndarray | None = None
+    #: how much of the recording's steady background noise was taken out before it was heard (0–1)
+    noise_suppressed: float = 0.0
 
     @property
     def majority(self) -> tuple[str, int]:
@@ -328,6 +330,8 @@ class PerceivedEmotion:
         n = len(self.labels)
         text = (f"{self.source}: perceived emotion {label} ({count} of {n} window{'s' * (n != 1)}, "
                 f"mean probability {self.confidence:.2f})")
+        if self.noise_suppressed > 0:
+            text += f", heard with its steady background noise taken out ({self.noise_suppressed:.0%})"
         if self.trust is None:
             return text + "; this speech model has no perception calibration, its emotion latent is used as is"
         low = int((self.trust < 1.0).sum())
@@ -363,7 +367,9 @@ class PerceivedEmotion:
             rows.append(row)
         label, count = self.majority
         return json.dumps({"source": self.source, "emotion": label, "windows_agreeing": count,
-                           "confidence": round(self.confidence, 4), "windows": rows}, indent=1) + "\n"
+                           "confidence": round(self.confidence, 4),
+                           "noise_suppressed": round(float(self.noise_suppressed), 4), "windows": rows},
+                          indent=1) + "\n"
 
 
 def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerception | None,
@@ -377,7 +383,8 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
                              perception.voice.nearest(enc.style) / perception.voice.threshold], 1)
         trust = perception.trust(enc.emotion, enc.style)
     return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust,
-                            real_voices=None if perception is None else perception.real_voices_posterior(enc.emotion))
+                            real_voices=None if perception is None else perception.real_voices_posterior(enc.emotion),
+                            noise_suppressed=enc.noise_suppressed)
 
 
 def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:

@@ -12,7 +12,8 @@ import numpy as np
 import torch
 
 from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression, fbank_windows, kaldi_fbank,
-                              normalise_fbank, normalise_recording, suppress_noise, window_starts)
+                              normalise_fbank, normalise_recording, suppress_noise, suppression_strength,
+                              window_starts)
 from emogesture.audio.timing import timing_stream
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
@@ -26,7 +27,8 @@ FBANK_RATE = 100  # frames per second
 @dataclass
 class EncodedWindows:
     """Latents of ``W`` windows: ``content/emotion/style [W, 256]``, logits ``[W, 8]`` / ``[W, n]``, and
-    (from :meth:`SpeechLatentEncoder.encode`) the windows' timing stream ``[W, 300, 2]``."""
+    (from :meth:`SpeechLatentEncoder.encode`) the windows' timing stream ``[W, 300, 2]`` and how much of the
+    recording's steady noise was taken out before it was heard (0–1, :mod:`emogesture.audio.noise`)."""
 
     content: np.ndarray
     emotion: np.ndarray
@@ -34,6 +36,7 @@ class EncodedWindows:
     emotion_logits: np.ndarray
     speaker_logits: np.ndarray
     timing: np.ndarray | None = None
+    noise_suppressed: float = 0.0
 
     #: What the per-split latents cache stores (the timing stream is recomputed from the windows).
     stored = ("content", "emotion", "style", "emotion_logits", "speaker_logits")
@@ -144,7 +147,9 @@ class SpeechLatentEncoder:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         with maybe_stage(times, "fbank"):
             fb = kaldi_fbank(waveform, self.fbank_config)
+            strength = 0.0
             if noise_suppression and self.noise_suppression is not None:
+                strength = suppression_strength(fb, self.noise_suppression)
                 fb = suppress_noise(fb, self.noise_suppression)
             fb = normalise_recording(fb, self.recording_norm)
             fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
@@ -154,7 +159,7 @@ class SpeechLatentEncoder:
             timing = timing_stream(windows, lengths=[len(fb) - f for f in frames])
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
-        enc.timing = timing
+        enc.timing, enc.noise_suppressed = timing, strength
         return enc, starts
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int | None = None) -> EncodedWindows:
