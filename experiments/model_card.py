@@ -232,8 +232,10 @@ Only the project's **synthetic corpus** (`emogesture corpus --speakers 30`, vers
   recording conditions (`--set wave_augment=0.5`: rooms, noise, microphones, telephone, voice and
   tempo shifts), then 700 more from there (`--init-from`, learning rate 5e-4) with three quarters of
   its windows augmented, voices moved by up to 6 semitones, the pitch alone moved by up to 3 semitones
-  (formants kept) in half of the augmented windows and more level changes, **train split only**; each
-  stage's augmented windows made once before it, 16 variants of each window (`--set wave_variants=16`);
+  (formants kept) in half of the augmented windows and more level changes, its encoders hearing the
+  spectrum up to 4 kHz only (`--set model.heard_bins=96`: real recordings end anywhere from 4 kHz up,
+  the synthetic voices never do), **train split only**; each stage's augmented windows made once before
+  it, 16 variants of each window (`--set wave_variants=16`);
 - extractor M: 600 steps, train split;
 - gesture model: joint training, {gesture_steps} steps (450 prior-only first), train split; its residual noise
   and the speech model's emotion perception are calibrated on the **val** split, which no model

@@ -8,8 +8,9 @@
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
 #      then trained on from there for 700 steps (lr 5e-4) with three quarters of its windows augmented,
 #      voices moved by up to 6 semitones, half of the augmented windows' pitch moved alone by up to 3
-#      semitones and more level changes (`speech_tuned`, the one used below); each stage's augmented
-#      windows made once before it, 16 variants per window (`wave_variants`);
+#      semitones and more level changes, its encoders hearing the spectrum up to 4 kHz only (`speech_tuned`,
+#      the one used below); each stage's augmented windows made once before it, 16 variants per window
+#      (`wave_variants`);
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
 #   4. the speech model's emotion perception (class means on train and of three real voices given each
@@ -29,6 +30,9 @@ SPEECH_VARIANTS=(--set wave_variants=16)
 # the second stage: the pitch alone moved too (pitch_alone.sh), formants kept, as people's pitch differs
 # around their vocal tracts more than the corpus's speakers' does
 SPEECH_PITCH=(--set wave.pitch=0.5 --set wave.pitch_semitones=3)
+# the second stage: its encoders hear the mel bins up to 4 kHz only (heard_bins.sh), as real recordings end
+# anywhere from 4 kHz up (codecs, microphones) and the synthetic voices never do
+SPEECH_BAND=(--set model.heard_bins=96)
 
 speech_more() {  # NAME THREADS [--set ...] : 500 speech steps more into $RUN/NAME with the caller's STAGE
     # arguments (an array: data, starting model, settings), unless done; its wall time to $RUN/times.txt
@@ -83,7 +87,7 @@ speech_second_stage() {  # OUT FIRST CACHE TIMES [option ...] : the recipe's sec
     shift 4
     grep -qs '"step": 700' "$out/model.json" || timed "$times" speech_tuned $EG train speech --data "$cache" \
         --init-from "$first" --out "$out" --losses adversarial --steps 700 --checkpoint-every 100 \
-        "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_VARIANTS[@]}" "$@" --quiet
+        "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_BAND[@]}" "${SPEECH_VARIANTS[@]}" "$@" --quiet
 }
 
 train_bundle() {  # RUN CACHE

@@ -319,3 +319,24 @@ def test_encode_runs_only_the_encoders_of_the_latents_asked_for():
         assert (emotion.style.shape == (2, 256)) is context  # the emotion encoder reads the speaker context
     with pytest.raises(ValueError, match="unknown latent parts"):
         model.encode(x, parts=("prosody",))
+
+
+def test_heard_bins_hide_the_top_of_the_spectrum():
+    """``heard_bins``: the encoders hear the lowest bins only; what lies above them changes no latent."""
+    torch.manual_seed(0)
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=3)
+    full = SpeechDisentangler(cfg).eval()
+    limited = SpeechDisentangler(SpeechModelConfig.preset("tiny", num_speakers=3)).eval()
+    limited.load_state_dict(full.state_dict())
+    limited.config.heard_bins = 96
+    x = torch.randn(2, 1024, 128, generator=_gen(3))
+    y = x.clone()
+    y[..., 96:] = torch.randn(2, 1024, 32, generator=_gen(4))
+    with torch.no_grad():
+        a, b = limited.encode(x), limited.encode(y)
+        c, d = full.encode(x), full.encode(y)
+    for name in ("content", "emotion", "style"):
+        assert torch.equal(getattr(a, name), getattr(b, name)), name
+        assert not torch.allclose(getattr(c, name), getattr(d, name)), name
+    with pytest.raises(ConfigError, match="heard_bins 129"):
+        SpeechModelConfig(heard_bins=129)

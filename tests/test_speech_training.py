@@ -295,6 +295,8 @@ def test_init_from_a_trained_speech_model_starts_every_weight_there(tmp_path):
     assert torch.equal(module.averaged.fusion.state_dict()[next(iter(module.averaged.fusion.state_dict()))],
                        trained.fusion.state_dict()[next(iter(trained.fusion.state_dict()))])
 
+    config.model.heard_bins = 96  # what the encoders hear may change from one stage to the next
+    assert SpeechModule(to_dict(config), seed=2).model.config.heard_bins == 96
     config.model.latent_dim = 128
     with pytest.raises(ConfigError, match="another architecture.*latent_dim"):
         SpeechModule(to_dict(config))

@@ -45,6 +45,12 @@ class SpeechModelConfig:
     #: LayerNorm + Linear, zero at initialisation, added to its [CLS] input), so it can judge emotion
     #: relative to the speaker's own voice.
     emotion_speaker_context: bool = False
+    #: An extension (paper: 0, every bin): the encoders hear only the lowest ``heard_bins`` filterbank bins,
+    #: the others held at the dataset mean (0 in the normalised domain). A recording's top octave says much
+    #: about the microphone, the codec and the synthesiser and little about emotion: with the default 128
+    #: HTK-mel bins from 20 Hz to 8 kHz, 96 hears up to 4 kHz, as a low-pass at 4 kHz would leave them.
+    #: Not an architecture change: a trained model can be trained on with another value (``--init-from``).
+    heard_bins: int = 0
 
     def __post_init__(self) -> None:
         if self.fusion_width % self.fusion_heads or self.decoder_width % self.decoder_heads:
@@ -54,6 +60,9 @@ class SpeechModelConfig:
                 f"speech model: decoder_time_stride {self.decoder_time_stride} does not divide "
                 f"{self.encoder.input_frames} frames"
             )
+        if not 0 <= self.heard_bins <= self.encoder.input_bins:
+            raise ConfigError(f"speech model: heard_bins {self.heard_bins} must be 0 (all) to "
+                              f"{self.encoder.input_bins}")
         if min(self.num_emotions, self.num_speakers, self.latent_dim, self.decoder_memory_tokens) < 1:
             raise ConfigError("speech model: num_emotions, num_speakers, latent_dim and memory tokens must be ≥ 1")
 
@@ -229,6 +238,8 @@ class SpeechDisentangler(nn.Module):
         unknown = set(parts) - set(LATENT_PARTS)
         if unknown:
             raise ValueError(f"unknown latent parts {sorted(unknown)}; known: {', '.join(LATENT_PARTS)}")
+        fbank = self.heard(fbank)
+        emotion_fbank = None if emotion_fbank is None else self.heard(emotion_fbank)
         empty = fbank.new_zeros(fbank.shape[0], 0)
         content = self.content_encoder(fbank)[0] if "content" in parts else empty
         style = speaker_logits = emotion = emotion_logits = empty
@@ -238,6 +249,14 @@ class SpeechDisentangler(nn.Module):
             context = None if self.emotion_context is None else self.emotion_context(style.detach())
             emotion, emotion_logits = self.emotion_encoder(fbank if emotion_fbank is None else emotion_fbank, context)
         return SpeechEncoding(content, emotion, style, emotion_logits, speaker_logits)
+
+    def heard(self, fbank: torch.Tensor) -> torch.Tensor:
+        """``fbank [B, T, bins]`` as the encoders hear it: the bins from ``config.heard_bins`` on set to 0 (the
+        dataset mean); unchanged when every bin is heard."""
+        k = self.config.heard_bins
+        if k == 0 or k >= fbank.shape[-1]:
+            return fbank
+        return torch.cat([fbank[..., :k], fbank.new_zeros(*fbank.shape[:-1], fbank.shape[-1] - k)], dim=-1)
 
     def decode(self, content: torch.Tensor, emotion: torch.Tensor, style: torch.Tensor) -> torch.Tensor:
         """Latents ``[B, 256]`` ×3 -> reconstructed filterbank ``[B, 1024, 128]``."""

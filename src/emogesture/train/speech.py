@@ -252,6 +252,7 @@ def start_weights(model: SpeechDisentangler, path: str) -> None:
         return
     start = load_model(path, "speech")
     old, new = to_dict(start.config), to_dict(model.config)
+    old["heard_bins"] = new["heard_bins"]  # what the encoders hear, not their architecture
     if old != new:
         changed = ", ".join(changed_keys(old, new))
         raise ConfigError(f"{meta}: a speech model of another architecture ({changed}); --init-from needs the "
