@@ -6,8 +6,10 @@
 # calibrated as the recipe does, on val:
 #   - perception_shift.py (the val speakers' voices, never trained on, through changed recordings);
 #   - band_limits.py: the same voices low-passed at 4, 5 and 6 kHz and through MP3 (a codec's band);
-#   - real_perception.py and real_voice_emotions.py: the real recordings (never trained on: other people).
-# Reports in experiments/reports/heard_bins/ (val only). About 45 min on 2 CPU cores once make model's
+#   - real_perception.py and real_voice_emotions.py: the real recordings (never trained on: other people);
+# and the 4-kHz stage trained again with seed 1 (perception_shift.py and real_perception.py): how far two
+# trainings of it lie apart.
+# Reports in experiments/reports/heard_bins/ (val only). About 70 min on 2 CPU cores once make model's
 # first speech stage is trained; every step resumes.
 # Usage: experiments/heard_bins.sh
 set -euo pipefail
@@ -30,3 +32,8 @@ perception_val full_band_calibrated heard96_calibrated
     full_band="$RUN/full_band_calibrated" heard96="$RUN/heard96_calibrated"
 [ -f "$REPORT/real/real_perception.md" ] || \
     real_reports full_band="$RUN/full_band_calibrated" heard96="$RUN/heard96_calibrated"
+speech_second_stage "$RUN/heard96_seed1" "$BUNDLED/speech" "$CACHE" "$RUN/times.txt" --seed 1
+speech_calibrated heard96_seed1_calibrated "$RUN/heard96_seed1" --real-voices "$REAL_VOICES"
+perception_val heard96_seed1_calibrated
+[ -f "$REPORT/real_seed1/real_perception.md" ] || .venv/bin/python experiments/real_perception.py "$REPORT/real_seed1" \
+    heard96="$RUN/heard96_calibrated" heard96_seed1="$RUN/heard96_seed1_calibrated"
