@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from emogesture.audio.windows import FBANK_FRAMES_PER_SECOND, LOG_FLOOR
+from emogesture.audio.windows import FBANK_FRAMES_PER_SECOND, LOG_FLOOR, fbank_float64, fbank_like
 
 __all__ = ["NoiseSuppression", "dynamic_range_db", "suppress_noise", "suppression_strength"]
 
@@ -57,15 +57,10 @@ class NoiseSuppression:
             raise ValueError(f"noise suppression settings out of range: {self}")
 
 
-def _as_array(fbank: Array) -> np.ndarray:
-    x = fbank.detach().cpu().numpy() if isinstance(fbank, torch.Tensor) else np.asarray(fbank)
-    return x.astype(np.float64)
-
-
 def dynamic_range_db(fbank: Array) -> float:
     """dB between the loud (95th percentile) and quiet (10th) frames' mean mel power of a log-mel fbank
     ``[F, n_mels]``."""
-    x = _as_array(fbank)
+    x = fbank_float64(fbank)
     top = x.max(1, keepdims=True)
     frame_power = (top + np.log(np.exp(x - top).mean(1, keepdims=True)))[:, 0]  # log of the mean mel power
     return float(10.0 / math.log(10.0) * (np.percentile(frame_power, 95) - np.percentile(frame_power, 10)))
@@ -81,19 +76,18 @@ def suppression_strength(fbank: Array, settings: NoiseSuppression = NoiseSuppres
     return min(max((settings.off_above_db - dynamic_range_db(fbank)) / span, 0.0), 1.0)
 
 
-def suppress_noise(fbank: Array, settings: NoiseSuppression = NoiseSuppression()) -> Array:
+def suppress_noise(fbank: Array, settings: NoiseSuppression = NoiseSuppression(),
+                   strength: float | None = None) -> Array:
     """One recording's raw log-mel fbank ``[F, n_mels]`` with its steady noise subtracted, scaled by how
-    noisy the recording is (:func:`suppression_strength`); a recording in range, or too short, is returned
-    as it is. Returns the same type as ``fbank``."""
-    strength = suppression_strength(fbank, settings)
+    noisy the recording is (``strength``; None: :func:`suppression_strength`, for a caller that has not
+    measured it); a recording in range, or too short, is returned as it is. Returns the same type as
+    ``fbank``."""
+    strength = suppression_strength(fbank, settings) if strength is None else strength
     if strength == 0.0:
         return fbank
-    x = _as_array(fbank)
+    x = fbank_float64(fbank)
     noise = np.percentile(x, settings.noise_percentile, axis=0)  # [n_mels], log power
     # log(max(P − a·N, f²·P)) = x + log(max(1 − a·N/P, f²)), computed in the log domain (no overflow)
     keep = np.maximum(1.0 - strength * settings.over_subtraction * np.exp(noise[None] - x), settings.floor ** 2)
     # nothing goes below Kaldi's log floor (digital silence, the mel filter that covers no FFT bin stay there)
-    out = np.where(x <= LOG_FLOOR, x, np.maximum(x + np.log(keep), LOG_FLOOR))
-    if isinstance(fbank, torch.Tensor):
-        return torch.from_numpy(out).to(fbank.dtype)
-    return out.astype(np.asarray(fbank).dtype)
+    return fbank_like(np.where(x <= LOG_FLOOR, x, np.maximum(x + np.log(keep), LOG_FLOOR)), fbank)

@@ -55,6 +55,19 @@ LOG_FLOOR = math.log(FLOAT32_EPS)  # Kaldi's floor of the mel energies (FbankCon
 ACTIVE_GATE_DB = 30.0  # frames this far below the recording's loud frames (95th percentile) are pauses
 
 
+def fbank_float64(fbank: Array) -> np.ndarray:
+    """A fbank (tensor or array) as a float64 numpy array, for per-recording statistics."""
+    x = fbank.detach().cpu().numpy() if isinstance(fbank, torch.Tensor) else np.asarray(fbank)
+    return x.astype(np.float64)
+
+
+def fbank_like(out: np.ndarray, fbank: Array) -> Array:
+    """``out`` in ``fbank``'s type, dtype and device."""
+    if isinstance(fbank, torch.Tensor):
+        return torch.as_tensor(out, dtype=fbank.dtype, device=fbank.device)
+    return out.astype(np.asarray(fbank).dtype)
+
+
 def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB,
                         log_floor: float = LOG_FLOOR) -> Array:
     """One recording's raw log-mel fbank ``[F, n_mels]`` measured against the recording itself.
@@ -76,8 +89,7 @@ def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB
         raise ValueError(f"recording normalisation {mode!r}: use one of {', '.join(RECORDING_NORMS)}")
     if mode == "none" or len(fbank) == 0:
         return fbank
-    x = fbank.detach().cpu().numpy() if isinstance(fbank, torch.Tensor) else np.asarray(fbank)
-    x = x.astype(np.float64)
+    x = fbank_float64(fbank)
     loudness = x.mean(1)
     gate = np.percentile(loudness, 95) - gate_db * math.log(10.0) / 10.0  # dB of power -> natural-log units
     active = x[loudness >= gate]
@@ -87,10 +99,7 @@ def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB
     else:
         offset = active.mean(0)
     floor = x <= log_floor + 1e-4
-    out = np.where(floor, x, x - offset)
-    if isinstance(fbank, torch.Tensor):
-        return torch.as_tensor(out, dtype=fbank.dtype, device=fbank.device)
-    return out.astype(fbank.dtype)
+    return fbank_like(np.where(floor, x, x - offset), fbank)
 
 
 def denormalise_fbank(x: Array, mean: float = FBANK_MEAN, std: float = FBANK_STD) -> Array:

@@ -150,7 +150,7 @@ class SpeechLatentEncoder:
             strength = 0.0
             if noise_suppression and self.noise_suppression is not None:
                 strength = suppression_strength(fb, self.noise_suppression)
-                fb = suppress_noise(fb, self.noise_suppression)
+                fb = suppress_noise(fb, self.noise_suppression, strength)
             fb = normalise_recording(fb, self.recording_norm)
             fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
             starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
