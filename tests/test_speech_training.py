@@ -95,12 +95,12 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     proc.wait()
     assert proc.returncode == -signal.SIGKILL
     saved = checkpoint_step(last)  # the checkpoint survived the kill intact
-    assert saved >= 6 and not list(run.rglob("*.tmp"))
+    assert saved >= 6  # a kill in the middle of a write may leave its hidden temp file; the next run clears it
     done = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 3, "--checkpoint-every", 3,
                               "--log-every", 1), capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     assert f"at step {saved}" in done.stdout
-    assert checkpoint_step(last) == saved + 3
+    assert checkpoint_step(last) == saved + 3 and not list(run.rglob("*.tmp"))
     assert json.loads((run / "model.json").read_text())["extra"]["step"] == saved + 3
     # a further session keeps the earlier session's log instead of letting Lightning replace it
     first_log = (run / "logs" / "metrics.csv").read_text()
