@@ -8,7 +8,9 @@ played through changes that move a voice away from the training voices
 noise alone (no speech at all). For each, over every 10-s window: how often the
 perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
 the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
-share of windows that `generate --emotion auto` blends toward neutral.
+share of windows that `generate --emotion auto` blends toward neutral. Each window is heard as `generate`
+hears it (the default generation settings: noise suppression, and the voice heard also moved
+``perception_semitones`` up and down).
 
 Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT]
 """
@@ -25,6 +27,7 @@ from emogesture.audio import load_audio
 from emogesture.audio.wave_augment import recording_changes
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
+from emogesture.models.generation import GenerationConfig
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -51,12 +54,13 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
     variants = {f"{which}, as recorded": lambda w: w,
                 **{name: lambda w, c=change: np.asarray(c(w), f32) for name, change in recording_changes(rng).items()},
                 "pink noise, no speech": lambda w: pink(len(w), rng)}
+    semitones = GenerationConfig().perception_semitones
     rows = {}
     for name, change in variants.items():
         hits, dist, voice, low, trust, labels = [], [], [], [], [], []
         for take in takes:
             wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
-            enc, starts = encoder.encode(change(wave), 16000, 8.0)
+            enc, starts = encoder.encode(change(wave), 16000, 8.0, perception_semitones=semitones)
             p = perceive(enc, starts, perception, take)
             hits += [lab == EMOTIONS[emotion_of[take]] for lab in p.labels]
             labels += p.labels
@@ -72,14 +76,17 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
                       "perceived_emotions": counts}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    result = {"split": split, "takes": len(takes), "held_out": which, "thresholds": {"emotion": perception.emotion.threshold,
+    result = {"split": split, "takes": len(takes), "held_out": which, "perception_semitones": semitones,
+              "thresholds": {"emotion": perception.emotion.threshold,
               "voice": perception.voice.threshold}, "threshold_info": perception.info, "rows": rows}
     (out / "perception_shift.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = ["# Emotion perception on voices unlike the training voices", "",
              f"{len(takes)} takes of the {split} split ({which}), every 10-s window. Emotion distance: "
              "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
              "latent's to the nearest training speaker; each over its trust threshold (the "
-             f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows).", "",
+             f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows). "
+             + (f"Each window heard as recorded and with the voice moved {semitones:g} semitones up and down (the "
+                "probabilities averaged)." if semitones else "Each window heard once."), "",
              "| audio | windows | perceived emotion correct | median emotion distance / threshold | median voice "
              "distance / threshold | blended toward neutral (`--emotion auto`) | mean trust | most perceived |",
              "|---|---|---|---|---|---|---|---|"]

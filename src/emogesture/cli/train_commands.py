@@ -89,7 +89,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", dest="generation", action="append", default=[], metavar="KEY=VALUE",
                    help="change a generation setting of the gesture model (repeatable; no retraining): "
                         "num_inference_steps, residual_scale, timing_guidance, timing_guidance_on, "
-                        "output_smoothing, output_lowpass_hz, seam_candidates, hop_seconds, noise_suppression")
+                        "output_smoothing, output_lowpass_hz, seam_candidates, hop_seconds, noise_suppression, "
+                        "perception_semitones")
     p.add_argument("--overwrite", action="store_true", help="write into a folder that is not empty")
     p.set_defaults(func=run_bundle)
 

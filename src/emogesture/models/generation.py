@@ -58,6 +58,11 @@ class GenerationConfig:
     #: Whether the speech model hears a noisy recording with its steady background noise taken out
     #: (:mod:`emogesture.audio.noise`; a recording in quiet surroundings is heard as it is either way).
     noise_suppression: bool = True
+    #: The emotion heard in a window is the mean of three hearings: as recorded and with the voice moved
+    #: this many semitones up and down (pitch and formants, tempo kept), so that a voice pitched unlike
+    #: the training voices is not heard by its pitch alone (0 = heard once). Only what is heard (labels,
+    #: probabilities, timelines) changes; the latents the gesture model is given are the recording's own.
+    perception_semitones: float = 3.0
 
     def __post_init__(self) -> None:
         if self.num_inference_steps < 1 or self.seam_candidates < 1:
@@ -72,6 +77,9 @@ class GenerationConfig:
         if not 0 <= self.output_lowpass_hz < FPS / 2:
             raise ConfigError(f"generation: output_lowpass_hz must be 0 (off) or below {FPS / 2:g} Hz (half the "
                               f"{FPS} fps), got {self.output_lowpass_hz}")
+        if not 0 <= self.perception_semitones <= 12:
+            raise ConfigError(f"generation: perception_semitones must be in [0, 12] (0: heard once), got "
+                              f"{self.perception_semitones}")
         if not 0 < self.hop_seconds <= 10:
             raise ConfigError(f"generation: hop_seconds must be in (0, 10] (windows are 10 s), got {self.hop_seconds}")
 

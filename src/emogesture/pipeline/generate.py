@@ -130,11 +130,13 @@ class GesturePipeline:
                ) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` (None: the
         settings' hop), and their starts (s); ``parts``: the latents wanted (default all three; an edit
-        source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``)."""
+        source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``
+        and ``perception_semitones``)."""
         settings = generation or self.generation
         hop = settings.hop_seconds if hop_seconds is None else hop_seconds
         return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts,
-                                  noise_suppression=settings.noise_suppression)
+                                  noise_suppression=settings.noise_suppression,
+                                  perception_semitones=settings.perception_semitones)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion

@@ -15,6 +15,7 @@ from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression,
                               normalise_fbank, normalise_recording, suppress_noise, suppression_strength,
                               window_starts)
 from emogesture.audio.timing import timing_stream
+from emogesture.audio.wave_augment import voice_shift
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.data.cache import WindowsCache
@@ -37,6 +38,10 @@ class EncodedWindows:
     speaker_logits: np.ndarray
     timing: np.ndarray | None = None
     noise_suppressed: float = 0.0
+    #: the same windows heard again with the voice moved in pitch (``perception_semitones`` of
+    #: :meth:`SpeechLatentEncoder.encode`): emotion latents ``[S, W, 256]`` and logits ``[S, W, 8]``; None: once
+    shifted_emotion: np.ndarray | None = None
+    shifted_logits: np.ndarray | None = None
 
     #: What the per-split latents cache stores (the timing stream is recomputed from the windows).
     stored = ("content", "emotion", "style", "emotion_logits", "speaker_logits")
@@ -137,30 +142,53 @@ class SpeechLatentEncoder:
 
     def encode(self, waveform: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE, hop_seconds: float = 5.0,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
-               parts: tuple[str, ...] = LATENT_PARTS, noise_suppression: bool = True
-               ) -> tuple[EncodedWindows, list[float]]:
+               parts: tuple[str, ...] = LATENT_PARTS, noise_suppression: bool = True,
+               perception_semitones: float = 0.0) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).
         ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it;
         ``parts``: the latents wanted (an edit source needs only its emotion or its style);
-        ``noise_suppression``: False hears a noisy recording with its noise (class docstring)."""
+        ``noise_suppression``: False hears a noisy recording with its noise (class docstring);
+        ``perception_semitones`` > 0: the emotion encoder hears the recording twice more, its voice (pitch and
+        formants) moved that many semitones up and down with the tempo kept, into
+        ``shifted_emotion``/``shifted_logits`` (what :func:`emogesture.pipeline.perception.perceive` averages);
+        the latents themselves are the recording's own."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
+        if perception_semitones < 0:
+            raise ValueError(f"perception_semitones must be ≥ 0, got {perception_semitones}")
+        starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
+        frames = [int(round(s * FBANK_RATE)) for s in starts]
         with maybe_stage(times, "fbank"):
             fb = kaldi_fbank(waveform, self.fbank_config)
             strength = 0.0
             if noise_suppression and self.noise_suppression is not None:
                 strength = suppression_strength(fb, self.noise_suppression)
-                fb = suppress_noise(fb, self.noise_suppression, strength)
-            fb = normalise_recording(fb, self.recording_norm)
-            fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
-            starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
-            frames = [int(round(s * FBANK_RATE)) for s in starts]
-            windows = np.asarray(fbank_windows(fb, frames, self.window_frames))
+            windows = self._heard_windows(fb, frames, strength)
             timing = timing_stream(windows, lengths=[len(fb) - f for f in frames])
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed = timing, strength
+        if perception_semitones > 0 and "emotion" in parts:
+            shifted = []
+            for semitones in (perception_semitones, -perception_semitones):
+                with maybe_stage(times, "fbank"):
+                    moved = voice_shift(np.asarray(waveform, np.float64), semitones).astype(np.float32)
+                    heard = self._heard_windows(kaldi_fbank(moved, self.fbank_config), frames, strength)
+                with maybe_stage(times, "speech encoders"):
+                    shifted.append(self.encode_windows(heard, parts=("emotion",)))
+            enc.shifted_emotion = np.stack([e.emotion for e in shifted])
+            enc.shifted_logits = np.stack([e.emotion_logits for e in shifted])
         return enc, starts
+
+    def _heard_windows(self, fb: np.ndarray | torch.Tensor, frames: list[int], strength: float) -> np.ndarray:
+        """A recording's raw fbank ``[F, n_mels]`` as the encoders hear it, cut into windows ``[W, T, n_mels]``
+        starting at ``frames``: its noise taken out by ``strength`` (0: not at all), measured against itself
+        (``recording_norm``) and normalised with the model's statistics."""
+        if strength > 0:
+            fb = suppress_noise(fb, self.noise_suppression, strength)
+        fb = normalise_recording(fb, self.recording_norm)
+        fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
+        return np.asarray(fbank_windows(fb, frames, self.window_frames))
 
     def encode_split(self, cache: WindowsCache, split: str, batch_size: int | None = None) -> EncodedWindows:
         """Latents of every window of a prepared split, cached in the windows cache's ``latents/`` folder

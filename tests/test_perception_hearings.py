@@ -1,0 +1,92 @@
+"""The emotion heard in a window: the mean of the recording heard as it is and with its voice moved in pitch."""
+
+import numpy as np
+import pytest
+import torch
+
+from emogesture.audio.wave_augment import voice_shift
+from emogesture.checkpoints import load_model, save_model
+from emogesture.config import to_dict
+from emogesture.data.beat import EMOTIONS
+from emogesture.data.prepare import PrepareConfig
+from emogesture.errors import ConfigError
+from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+from emogesture.pipeline.perception import heard_probabilities, perceive
+from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
+
+
+def _voice(seconds: float = 12.0) -> np.ndarray:
+    """A voiced tone with a gliding pitch, in syllables."""
+    t = np.arange(int(seconds * 16000)) / 16000
+    f0 = 150 + 40 * np.sin(2 * np.pi * 0.4 * t)
+    voiced = sum(np.sin(2 * np.pi * k * np.cumsum(f0) / 16000) / k for k in range(1, 10))
+    return (0.2 * voiced * (np.sin(2 * np.pi * 3.0 * t) > 0.0)).astype(np.float32)
+
+
+@pytest.fixture(scope="module")
+def encoder(tmp_path_factory):
+    torch.manual_seed(0)
+    cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    path = tmp_path_factory.mktemp("hearings") / "m"
+    save_model(path, "speech", SpeechDisentangler(cfg), cfg, {
+        "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
+        "prepare_config": to_dict(PrepareConfig()), "step": 0})
+    return SpeechLatentEncoder(load_model(path, "speech"))
+
+
+def test_the_encoder_hears_the_voice_moved_up_and_down_and_keeps_its_own_latents(encoder):
+    wave = _voice()
+    once, starts = encoder.encode(wave)
+    thrice, starts3 = encoder.encode(wave, perception_semitones=3.0)
+    assert once.shifted_emotion is None and starts == starts3
+    for k in EncodedWindows.stored:  # the latents the gesture model gets are the recording's own
+        np.testing.assert_array_equal(getattr(once, k), getattr(thrice, k))
+    w = len(starts)
+    assert thrice.shifted_emotion.shape == (2, w, once.emotion.shape[1])
+    assert thrice.shifted_logits.shape == (2, w, len(EMOTIONS))
+    up = encoder.encode(voice_shift(wave.astype(np.float64), 3.0).astype(np.float32))[0]
+    np.testing.assert_allclose(thrice.shifted_emotion[0], up.emotion, atol=1e-5)
+    assert np.abs(thrice.shifted_emotion[0] - once.emotion).mean() > 1e-4
+    assert np.abs(thrice.shifted_emotion[0] - thrice.shifted_emotion[1]).mean() > 1e-4
+    # a source asked only for its style is heard once
+    assert encoder.encode(wave, parts=("style",), perception_semitones=3.0)[0].shifted_emotion is None
+    with pytest.raises(ValueError, match="perception_semitones"):
+        encoder.encode(wave, perception_semitones=-1.0)
+
+
+def test_the_heard_emotion_is_the_mean_of_the_three_readings():
+    def logits(k: int, n: int = 2) -> np.ndarray:
+        x = np.zeros((n, len(EMOTIONS)), np.float32)
+        x[:, k] = 2.0
+        return x
+
+    empty = np.zeros((2, 4), np.float32)
+    enc = EncodedWindows(empty, empty, empty, logits(EMOTIONS.index("contempt")), empty)
+    alone = heard_probabilities(enc, None)
+    assert alone.argmax(1).tolist() == [EMOTIONS.index("contempt")] * 2
+    enc.shifted_emotion = np.stack([empty, empty])
+    enc.shifted_logits = np.stack([logits(0), logits(0)])  # both moved voices sound neutral
+    mean = heard_probabilities(enc, None)
+    np.testing.assert_allclose(mean, (alone + 2 * heard_probabilities(EncodedWindows(
+        empty, empty, empty, logits(0), empty), None)) / 3, rtol=1e-6)
+    np.testing.assert_allclose(mean.sum(1), 1.0, rtol=1e-6)
+    assert perceive(enc, [0.0, 5.0], None, "x.wav").labels == ["neutral", "neutral"]
+
+
+def test_the_bundle_hears_three_times_unless_told_otherwise():
+    from emogesture.models.generation import GenerationConfig
+    from emogesture.pipeline.generate import GesturePipeline
+
+    assert GenerationConfig().perception_semitones == 3.0
+    once = GenerationConfig.preset("tiny").with_overrides(["perception_semitones=0"])
+    with pytest.raises(ConfigError, match="perception_semitones"):
+        GenerationConfig.preset("tiny").with_overrides(["perception_semitones=-2"])
+    pipe = GesturePipeline.from_run()
+    wave = _voice(14.0)
+    heard = pipe.encode(wave)
+    single = pipe.encode(wave, generation=once)
+    assert heard[0].shifted_emotion is not None and single[0].shifted_emotion is None
+    np.testing.assert_array_equal(heard[0].emotion, single[0].emotion)
+    p3, p1 = pipe.perceive(*heard, source="v.wav"), pipe.perceive(*single, source="v.wav")
+    assert np.abs(p3.probabilities - p1.probabilities).max() > 1e-4
+    np.testing.assert_array_equal(p3.trust, p1.trust)  # the trust is the recording's own
