@@ -161,6 +161,12 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     perception = json.loads((bundle / "speech.json").read_text())["extra"]["emotion_perception"]
     fallback = json.loads((bundle / "gesture.json").read_text())["extra"].get("fallback_style")
     fallback_text = fallback_sentence(fallback)
+    semitones = shift.get("perception_semitones", 0)
+    hearings_text = (f" The emotion a window is heard as is the mean of three hearings: as recorded and with the "
+                     f"voice moved {semitones:g} semitones up and down (the generation setting "
+                     "`perception_semitones`), so a voice pitched unlike the training voices is not read by its "
+                     "pitch alone; the trust and the latents animated are the recording's own."
+                     if semitones else "")
     if fallback:
         write_text_atomic(report / f"fallback_style_{fallback['split']}.md", fallback_table(fallback))
     rows = gesture["table"]["rows"]
@@ -255,7 +261,7 @@ Rebuild from scratch (about 85 minutes on 2 cores, 75 of them training):
 | measure | value |
 |---|---|
 | EA / SA (the speech model's classifier heads: emotion / speaker from the audio; SA on the train speakers' windows) | {speech['EA']:.3f} / {speech['SA']:.3f} |
-| EA of the emotion `generate` reports (the emotion head, and the nearest emotion mean where the window lies within the calibrated range) | {metrics['EA, the emotion perception']:.3f} |
+| EA of the emotion perception, each prepared window heard once (the emotion head, and the nearest emotion mean where the window lies within the calibrated range; `generate`'s three hearings: the table below) | {metrics['EA, the emotion perception']:.3f} |
 | the same on the voices it never heard (the test speakers' windows) | {metrics['EA, held-out voices']:.3f} |
 | GA: the generated motion's emotion, read by the extractor (ground truth: {gt['GA']:.3f}) | {ours['GA']:.3f} |
 | GA with `--emotion auto` (the default of `generate`) | {metrics['GA, --emotion auto']:.3f} |
@@ -297,7 +303,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   style blended toward a fallback style, so that the motion stays like the motion the model learned;
   the message says so. {fallback_text} A recording in steady background noise (its loud and quiet
   frames less than 20 dB apart) is heard with that noise subtracted first, in proportion to how noisy it
-  is (the generation setting `noise_suppression`; the white-noise row below). `--emotion own` keeps the raw
+  is (the generation setting `noise_suppression`; the white-noise row below).{hearings_text} `--emotion own` keeps the raw
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;
