@@ -303,7 +303,9 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   style blended toward a fallback style, so that the motion stays like the motion the model learned;
   the message says so. {fallback_text} A recording in steady background noise (its loud and quiet
   frames less than 20 dB apart) is heard with that noise subtracted first, in proportion to how noisy it
-  is (the generation setting `noise_suppression`; the white-noise row below).{hearings_text} `--emotion own` keeps the raw
+  is (the generation setting `noise_suppression`; the white-noise row below). Digital silence (exact zeros:
+  clips joined with inserted silence, a noise gate, padding), which no training recording has, is heard
+  as the recording's own quiet.{hearings_text} `--emotion own` keeps the raw
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;

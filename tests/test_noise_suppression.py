@@ -121,3 +121,46 @@ def test_generate_says_when_it_took_noise_out(tmp_path):
     assert heard[0].noise_suppressed == 0.0 and "background noise" not in heard[0].summary("auto")
     assert heard[1].noise_suppressed == 1.0 and "steady background noise taken out (100%)" in heard[1].summary("auto")
     assert '"noise_suppressed": 1.0' in heard[1].to_json()
+
+
+def test_digital_silence_is_heard_as_the_recordings_own_quiet():
+    from emogesture.audio import digital_silence, fill_digital_silence
+
+    speech = _speech()
+    gap = np.zeros(16000 // 2, np.float32)
+    joined = np.concatenate([speech, gap, speech])
+    fb = kaldi_fbank(joined)
+    silent = digital_silence(fb)
+    assert 40 <= silent.sum() <= 50  # the half second of zeros, less the frames that reach into the speech
+    filled = fill_digital_silence(fb)
+    assert isinstance(filled, torch.Tensor) and filled.shape == fb.shape
+    np.testing.assert_array_equal(filled[~silent].numpy(), fb[~silent].numpy())  # the rest untouched
+    quiet = np.percentile(fb[~silent].numpy(), 1, axis=0)
+    np.testing.assert_allclose(filled[silent].numpy(), np.broadcast_to(quiet, (silent.sum(), quiet.size)), rtol=1e-5)
+    assert not digital_silence(filled).any()
+    # a recording without digital silence, and one that is nearly all silence, are returned as they are
+    plain = kaldi_fbank(speech)
+    assert fill_digital_silence(plain) is plain
+    nearly = kaldi_fbank(np.concatenate([np.zeros(16000 * 3, np.float32), speech[:1600]]))
+    assert fill_digital_silence(nearly) is nearly
+
+
+def test_the_encoder_fills_digital_silence_and_says_so(tmp_path):
+    from emogesture.pipeline.generate import GesturePipeline
+
+    pipe = GesturePipeline.from_run()
+    speech = _speech(6.0)
+    joined = np.concatenate([speech, np.zeros(16000, np.float32), speech])
+    heard = pipe.perceive(*pipe.encode(joined), source="joined.wav")
+    assert 0.9 <= heard.digital_silence_s <= 1.0
+    assert "digital silence heard as the recording's own quiet" in heard.summary("auto")
+    assert '"digital_silence_s": ' in heard.to_json()
+    pipe.speech.fill_digital_silence = False
+    try:
+        raw = pipe.encode(joined)[0]
+    finally:
+        pipe.speech.fill_digital_silence = True
+    assert raw.digital_silence_s == 0.0
+    assert np.abs(raw.emotion - pipe.encode(joined)[0].emotion).mean() > 1e-4
+    plain = pipe.perceive(*pipe.encode(speech), source="plain.wav")
+    assert plain.digital_silence_s == 0.0 and "digital silence" not in plain.summary("auto")

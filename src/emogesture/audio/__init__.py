@@ -18,7 +18,8 @@ from emogesture.audio.fbank import (
 )
 from emogesture.audio.io import TARGET_SAMPLE_RATE, check_speech, load_audio, resample
 from emogesture.audio.mfcc import mfcc_from_log_mel
-from emogesture.audio.noise import NoiseSuppression, dynamic_range_db, suppress_noise, suppression_strength
+from emogesture.audio.noise import (NoiseSuppression, digital_silence, dynamic_range_db, fill_digital_silence,
+                                   suppress_noise, suppression_strength)
 from emogesture.audio.mel import (
     hz_to_mel_htk,
     hz_to_mel_slaney,
@@ -51,6 +52,8 @@ __all__ = [
     "NoiseSuppression",
     "dynamic_range_db",
     "suppress_noise",
+    "digital_silence",
+    "fill_digital_silence",
     "suppression_strength",
     "FBANK_FRAMES_PER_SECOND",
     "FBANK_MEAN",

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from emogesture.errors import EmogestureError, InputFileError, OutputExistsError
+from emogesture.errors import InputFileError, OutputExistsError  # OutputExistsError: emogesture.motion gives it
 from emogesture.fileio import atomic_output
 from emogesture.types import FPS, NUM_JOINTS, SMPLXSequence
 

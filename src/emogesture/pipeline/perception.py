@@ -323,6 +323,8 @@ class PerceivedEmotion:
     real_voices: np.ndarray | None = None
     #: how much of the recording's steady background noise was taken out before it was heard (0–1)
     noise_suppressed: float = 0.0
+    #: seconds of digital silence (exact zeros) heard as the recording's own quiet
+    digital_silence_s: float = 0.0
 
     @property
     def majority(self) -> tuple[str, int]:
@@ -341,6 +343,8 @@ class PerceivedEmotion:
                 f"mean probability {self.confidence:.2f})")
         if self.noise_suppressed > 0:
             text += f", heard with its steady background noise taken out ({self.noise_suppressed:.0%})"
+        if self.digital_silence_s > 0:
+            text += f", its {self.digital_silence_s:.1f} s of digital silence heard as the recording's own quiet"
         if self.trust is None:
             return text + "; this speech model has no perception calibration, its emotion latent is used as is"
         low = int((self.trust < 1.0).sum())
@@ -377,7 +381,8 @@ class PerceivedEmotion:
         label, count = self.majority
         return json.dumps({"source": self.source, "emotion": label, "windows_agreeing": count,
                            "confidence": round(self.confidence, 4),
-                           "noise_suppressed": round(float(self.noise_suppressed), 4), "windows": rows},
+                           "noise_suppressed": round(float(self.noise_suppressed), 4),
+                           "digital_silence_s": round(float(self.digital_silence_s), 2), "windows": rows},
                           indent=1) + "\n"
 
 
@@ -406,7 +411,7 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
         trust = perception.trust(enc.emotion, enc.style)
     return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust,
                             real_voices=None if perception is None else perception.real_voices_posterior(enc.emotion),
-                            noise_suppressed=enc.noise_suppressed)
+                            noise_suppressed=enc.noise_suppressed, digital_silence_s=enc.digital_silence_s)
 
 
 def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:

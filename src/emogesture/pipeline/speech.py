@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression, fbank_windows, kaldi_fbank,
-                              normalise_fbank, normalise_recording, suppress_noise, suppression_strength,
-                              window_starts)
+from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression, digital_silence, fbank_windows,
+                              fill_digital_silence, kaldi_fbank, normalise_fbank, normalise_recording, suppress_noise,
+                              suppression_strength, window_starts)
 from emogesture.audio.timing import timing_stream
 from emogesture.audio.wave_augment import voice_shift
 from emogesture.checkpoints import LoadedModel, load_model
@@ -38,6 +38,8 @@ class EncodedWindows:
     speaker_logits: np.ndarray
     timing: np.ndarray | None = None
     noise_suppressed: float = 0.0
+    #: seconds of digital silence heard as the recording's own quiet (:func:`emogesture.audio.fill_digital_silence`)
+    digital_silence_s: float = 0.0
     #: the same windows heard again with the voice moved in pitch (``perception_semitones`` of
     #: :meth:`SpeechLatentEncoder.encode`): emotion latents ``[S, W, 256]`` and logits ``[S, W, 8]``; None: once
     shifted_emotion: np.ndarray | None = None
@@ -62,8 +64,9 @@ MAX_ENCODER_BATCH = 32
 
 class SpeechLatentEncoder:
     """A frozen speech model in eval mode: deterministic, batched, no gradients; ``precision`` ``fp32``,
-    ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`). A recording it encodes has its steady
-    background noise taken out first where it is noisy (:mod:`emogesture.audio.noise`; ``noise_suppression``
+    ``bf16`` (autocast) or ``auto`` (see :mod:`emogesture.runtime`). A recording it encodes has its digital
+    silence (exact zeros) heard as the recording's own quiet (``fill_digital_silence`` False: as it is) and its
+    steady background noise taken out where it is noisy (:mod:`emogesture.audio.noise`; ``noise_suppression``
     None: never)."""
 
     def __init__(self, loaded: LoadedModel, device: str = "cpu", precision: str = "fp32") -> None:
@@ -79,6 +82,7 @@ class SpeechLatentEncoder:
         self.recording_norm = prep.get("recording_norm", "none")
         self.window_frames = loaded.config.encoder.input_frames
         self.noise_suppression: NoiseSuppression | None = NoiseSuppression()
+        self.fill_digital_silence = True
 
     @classmethod
     def from_run(cls, path: str | PathLike[str], device: str = "cpu", precision: str = "fp32") -> "SpeechLatentEncoder":
@@ -159,7 +163,7 @@ class SpeechLatentEncoder:
         starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
         frames = [int(round(s * FBANK_RATE)) for s in starts]
         with maybe_stage(times, "fbank"):
-            fb = kaldi_fbank(waveform, self.fbank_config)
+            fb, silence_s = self._filled(kaldi_fbank(waveform, self.fbank_config))
             strength = 0.0
             if noise_suppression and self.noise_suppression is not None:
                 strength = suppression_strength(fb, self.noise_suppression)
@@ -167,18 +171,27 @@ class SpeechLatentEncoder:
             timing = timing_stream(windows, lengths=[len(fb) - f for f in frames])
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
-        enc.timing, enc.noise_suppressed = timing, strength
+        enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
         if perception_semitones > 0 and "emotion" in parts:
             shifted = []
             for semitones in (perception_semitones, -perception_semitones):
                 with maybe_stage(times, "fbank"):
                     moved = voice_shift(np.asarray(waveform, np.float64), semitones).astype(np.float32)
-                    heard = self._heard_windows(kaldi_fbank(moved, self.fbank_config), frames, strength)
+                    heard = self._heard_windows(self._filled(kaldi_fbank(moved, self.fbank_config))[0], frames,
+                                                strength)
                 with maybe_stage(times, "speech encoders"):
                     shifted.append(self.encode_windows(heard, parts=("emotion",)))
             enc.shifted_emotion = np.stack([e.emotion for e in shifted])
             enc.shifted_logits = np.stack([e.emotion_logits for e in shifted])
         return enc, starts
+
+    def _filled(self, fb: torch.Tensor) -> tuple[torch.Tensor, float]:
+        """A recording's raw fbank with its digital silence filled (unless ``fill_digital_silence`` is off), and
+        the seconds filled."""
+        if not self.fill_digital_silence:
+            return fb, 0.0
+        filled = fill_digital_silence(fb)
+        return filled, (float(digital_silence(fb).sum()) / FBANK_RATE if filled is not fb else 0.0)
 
     def _heard_windows(self, fb: np.ndarray | torch.Tensor, frames: list[int], strength: float) -> np.ndarray:
         """A recording's raw fbank ``[F, n_mels]`` as the encoders hear it, cut into windows ``[W, T, n_mels]``
