@@ -60,11 +60,10 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
     cache = open_cache(cache_dir)
     windows = cache.split(split)
     root = Path(cache.manifest["root"])
-    takes = [t for t in dict.fromkeys(windows.takes)
-             if windows.speaker_id[windows.takes.index(t)] not in encoder.speakers]
+    emotion_of = {t: EMOTIONS[e] for t, e in windows.take_emotions(leave_out_speakers=encoder.speakers).items()}
+    takes = list(emotion_of)
     if not takes:
         raise SystemExit(f"{cache_dir}: the {split} split has no voice the speech model never heard")
-    emotion_of = {t: EMOTIONS[int(e)] for t, e in zip(windows.takes, windows.emotion)}
     changes = {"as recorded": lambda w: w, "0.3 s of digital silence every 3 s": joined,
                "noise gate, 35 dB": gated}
 

@@ -49,11 +49,10 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
     cache = open_cache(cache_dir)
     windows = cache.split(split)
     root = Path(cache.manifest["root"])
-    takes = [t for t in dict.fromkeys(windows.takes)
-             if windows.speaker_id[windows.takes.index(t)] not in encoder.speakers]
+    emotion_of = windows.take_emotions(leave_out_speakers=encoder.speakers)
+    takes = list(emotion_of)
     if not takes:
         raise SystemExit(f"{cache_dir}: the {split} split has no voice the speech model never heard")
-    emotion_of = {t: int(e) for t, e in zip(windows.takes, windows.emotion)}
     rng = np.random.default_rng(0)
     changes = {"as recorded": lambda w: w,
                **{k: v for k, v in recording_changes(rng).items() if "level" not in k}}

@@ -45,10 +45,10 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
     cache = open_cache(cache_dir)
     test = cache.split(split)
     root = Path(cache.manifest["root"])
-    unheard = {t for t, s in zip(test.takes, test.speaker_id.tolist()) if s not in encoder.speakers}
-    takes = [t for t in dict.fromkeys(test.takes) if t in unheard or not unheard]
+    unheard = test.take_emotions(leave_out_speakers=encoder.speakers)
     which = "held-out voices" if unheard else "held-out texts"
-    emotion_of = {t: int(e) for t, e in zip(test.takes, test.emotion)}
+    emotion_of = unheard or test.take_emotions()
+    takes = list(emotion_of)
     rng = np.random.default_rng(0)
     f32 = np.float32
     variants = {f"{which}, as recorded": lambda w: w,

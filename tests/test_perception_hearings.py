@@ -90,3 +90,14 @@ def test_the_bundle_hears_three_times_unless_told_otherwise():
     p3, p1 = pipe.perceive(*heard, source="v.wav"), pipe.perceive(*single, source="v.wav")
     assert np.abs(p3.probabilities - p1.probabilities).max() > 1e-4
     np.testing.assert_array_equal(p3.trust, p1.trust)  # the trust is the recording's own
+
+
+def test_a_split_gives_the_takes_of_the_voices_a_model_never_heard():
+    from emogesture.data.cache import SplitWindows
+
+    empty = np.zeros((5, 1, 1), np.float32)
+    split = SplitWindows(empty, empty, empty[..., 0], ["a", "a", "b", "c", "c"], np.array([1, 1, 2, 3, 3]),
+                         np.array([4, 4, 0, 7, 7]), np.zeros(5, np.int64), np.zeros(5))
+    assert split.take_emotions() == {"a": 4, "b": 0, "c": 7}
+    assert split.take_emotions(leave_out_speakers=[1, 3]) == {"b": 0}
+    assert split.take_emotions(leave_out_speakers=np.array([1, 2, 3])) == {}

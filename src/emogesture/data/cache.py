@@ -14,7 +14,7 @@ version), which is written last and marks the cache complete.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import csv
 from dataclasses import dataclass
@@ -45,6 +45,13 @@ class SplitWindows:
 
     def __len__(self) -> int:
         return int(self.fbank.shape[0])
+
+    def take_emotions(self, leave_out_speakers: Iterable[int] = ()) -> dict[str, int]:
+        """Each take of the split, in order, and its emotion index; without the takes of the speakers
+        ``leave_out_speakers`` (a model's training voices: what is left are the voices it never heard)."""
+        heard = {int(s) for s in leave_out_speakers}
+        return {t: int(e) for t, s, e in zip(self.takes, self.speaker_id.tolist(), self.emotion.tolist())
+                if s not in heard}
 
 
 @dataclass

@@ -62,6 +62,8 @@ class GenerationConfig:
     #: this many semitones up and down (pitch and formants, tempo kept), so that a voice pitched unlike
     #: the training voices is not heard by its pitch alone (0 = heard once). Only what is heard (labels,
     #: probabilities, timelines) changes; the latents the gesture model is given are the recording's own.
+    #: Each extra hearing is one more pass of the emotion encoder (milliseconds with the bundled model; a
+    #: third of the speech encoders' time each with the paper's). A live stream hears once.
     perception_semitones: float = 3.0
 
     def __post_init__(self) -> None:
