@@ -86,6 +86,7 @@ def test_the_bundle_hears_three_times_unless_told_otherwise():
     heard = pipe.encode(wave)
     single = pipe.encode(wave, generation=once)
     assert heard[0].shifted_emotion is not None and single[0].shifted_emotion is None
+    assert pipe.encode(wave, perceived=False)[0].shifted_emotion is None  # latents alone: heard once
     np.testing.assert_array_equal(heard[0].emotion, single[0].emotion)
     p3, p1 = pipe.perceive(*heard, source="v.wav"), pipe.perceive(*single, source="v.wav")
     assert np.abs(p3.probabilities - p1.probabilities).max() > 1e-4

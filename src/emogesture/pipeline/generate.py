@@ -126,17 +126,18 @@ class GesturePipeline:
 
     def encode(self, waveform: np.ndarray, hop_seconds: float | None = None,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
-               parts: tuple[str, ...] = LATENT_PARTS, generation: GenerationConfig | None = None
-               ) -> tuple[EncodedWindows, list[float]]:
+               parts: tuple[str, ...] = LATENT_PARTS, generation: GenerationConfig | None = None,
+               perceived: bool = True) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` (None: the
         settings' hop), and their starts (s); ``parts``: the latents wanted (default all three; an edit
         source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``
-        and ``perception_semitones``)."""
+        and ``perception_semitones``); ``perceived`` False: only the latents are wanted, not what
+        :meth:`perceive` reads, so the recording is heard once."""
         settings = generation or self.generation
         hop = settings.hop_seconds if hop_seconds is None else hop_seconds
         return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts,
                                   noise_suppression=settings.noise_suppression,
-                                  perception_semitones=settings.perception_semitones)
+                                  perception_semitones=settings.perception_semitones if perceived else 0.0)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -230,7 +231,9 @@ class GesturePipeline:
         generator, so the result does not depend on how many are drawn together).
         """
         settings = self.settings(generation, seam_candidates, hop_seconds)
-        enc, starts_s = encoded if encoded is not None else self.encode(waveform, times=times, generation=settings)
+        if encoded is None:
+            encoded = self.encode(waveform, times=times, generation=settings, perceived=False)
+        enc, starts_s = encoded
         conds = self.conditions(enc, edit, emotion_mode, starts_s, len(waveform) / TARGET_SAMPLE_RATE)
         starts = [int(round(s * self.fps)) for s in starts_s]
         n = len(starts)
@@ -277,7 +280,7 @@ class GesturePipeline:
 
     def encode_file_latents(self, path: str | PathLike[str]) -> EncodedWindows:
         """Latents of another audio file (for ``--emotion-from`` / ``--style-from``)."""
-        enc, _ = self.encode(self.load_speech(path))
+        enc, _ = self.encode(self.load_speech(path), perceived=False)
         return enc
 
 

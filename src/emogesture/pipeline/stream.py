@@ -32,7 +32,7 @@ Example (the bundled model; 100-ms pieces of a recording, the emotion changed ha
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -94,8 +94,6 @@ class GestureStream:
         self.draws = 0  # noise draws so far (a new one at each update over sound)
         self.last: np.ndarray | None = None  # the last sent frame's features [D]
         self.style = None if style is None else np.asarray(style, np.float32).reshape(1, -1)
-        # a stream animates the latents and reports no perception, so the recording is heard once
-        self.hearing = replace(pipe.generation, perception_semitones=0.0)
         self.set_emotion(emotion, emotion_weight)
 
     @property
@@ -156,7 +154,7 @@ class GestureStream:
         new = target - self.sent
         if new <= 0:
             return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
-        enc, _ = self.pipe.encode(self.audio, generation=self.hearing)
+        enc, _ = self.pipe.encode(self.audio, perceived=False)  # a stream reports no perception
         conds = self.pipe.conditions(enc, self.edit, self.mode)
         k = self.settings.candidates
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
