@@ -4,8 +4,10 @@ The held-out takes of a split (the voices the speech model never heard) are play
 the robustness reports (:func:`emogesture.audio.wave_augment.recording_changes`, the two level changes left
 out: the perception is level-bound by design), and the real read speech (:mod:`emogesture.data.real_speech`;
 a check, never a criterion) as it is. Every 10-s window (8-s hop) is heard as recorded and with the voice
-moved ±1.5 and ±3 semitones (``SpeechLatentEncoder.encode(perception_semitones=...)``); each setting's label
-is the argmax of the mean of its hearings' probabilities (:func:`emogesture.pipeline.perception.heard_probabilities`).
+moved ±1.5 and ±3 semitones (``SpeechLatentEncoder.encode(perception_semitones=...)``), and, beside the ±3
+semitones, through a telephone band or 6 dB louder and quieter (each of these an encoding of its own, so its
+noise suppression is measured on it); each setting's label is the argmax of the mean of its hearings'
+probabilities (:func:`emogesture.pipeline.perception.heard_probabilities`).
 
 Usage: python experiments/perception_hearings.py SPEECH_MODEL CACHE OUT_DIR [SPLIT]   (SPLIT: val)
 """
@@ -20,26 +22,37 @@ import numpy as np
 from tqdm import tqdm
 
 from emogesture.audio import load_audio
-from emogesture.audio.wave_augment import recording_changes
+from emogesture.audio.wave_augment import recording_changes, telephone
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.real_speech import load_real_recording, real_recordings
 from emogesture.pipeline.perception import heard_probabilities, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
-SETTINGS = {"once": (), "±1.5 st": (1.5,), "±3 st": (3.0,), "±1.5 and ±3 st": (1.5, 3.0)}
+# each setting: the pitch moves (semitones, heard up and down) and the other hearings beside the recording's own
+SETTINGS = {"once": ((), ()), "±1.5 st": ((1.5,), ()), "±3 st": ((3.0,), ()), "±1.5 and ±3 st": ((1.5, 3.0), ()),
+            "±3 st and a telephone band": ((3.0,), ("telephone",)),
+            "±3 st and ±6 dB": ((3.0,), ("6 dB louder", "6 dB quieter"))}
+OTHER_HEARINGS = {"telephone": telephone, "6 dB louder": lambda w: np.clip(w * 10 ** (6 / 20), -1.0, 1.0),
+                  "6 dB quieter": lambda w: w * 10 ** (-6 / 20)}
 
 
-def hearings(encoder: SpeechLatentEncoder, wave: np.ndarray) -> tuple[EncodedWindows, dict[float, EncodedWindows]]:
-    heard = {s: encoder.encode(wave, 16000, 8.0, perception_semitones=s)[0] for s in (1.5, 3.0)}
+def hearings(encoder: SpeechLatentEncoder, wave: np.ndarray) -> tuple[EncodedWindows, dict]:
+    heard: dict = {s: encoder.encode(wave, 16000, 8.0, perception_semitones=s)[0] for s in (1.5, 3.0)}
+    for name, change in OTHER_HEARINGS.items():
+        heard[name] = encoder.encode(np.asarray(change(wave), np.float32), 16000, 8.0, parts=("emotion",))[0]
     return heard[3.0], heard
 
 
-def labels(enc: EncodedWindows, heard: dict[float, EncodedWindows], shifts: tuple[float, ...], perception) -> np.ndarray:
+def labels(enc: EncodedWindows, heard: dict, setting: tuple[tuple[float, ...], tuple[str, ...]],
+           perception) -> np.ndarray:
+    shifts, others = setting
     one = EncodedWindows(*(getattr(enc, k) for k in EncodedWindows.stored))
-    if shifts:
-        one.shifted_emotion = np.concatenate([heard[s].shifted_emotion for s in shifts])
-        one.shifted_logits = np.concatenate([heard[s].shifted_logits for s in shifts])
+    if shifts or others:
+        one.shifted_emotion = np.concatenate([heard[s].shifted_emotion for s in shifts]
+                                             + [heard[o].emotion[None] for o in others])
+        one.shifted_logits = np.concatenate([heard[s].shifted_logits for s in shifts]
+                                            + [heard[o].emotion_logits[None] for o in others])
     return heard_probabilities(one, perception).argmax(1)
 
 
@@ -62,15 +75,15 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
         for take in tqdm(takes, desc=change_name, leave=False):
             wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
             enc, heard = hearings(encoder, np.asarray(change(wave), np.float32))
-            for name, shifts in SETTINGS.items():
-                hits[name] += (labels(enc, heard, shifts, perception) == emotion_of[take]).tolist()
+            for name, setting in SETTINGS.items():
+                hits[name] += (labels(enc, heard, setting, perception) == emotion_of[take]).tolist()
         for name in SETTINGS:
             table[name][change_name] = float(np.mean(hits[name]))
     real = {name: {} for name in SETTINGS}
     for recording in real_recordings():
         enc, heard = hearings(encoder, np.asarray(load_real_recording(recording), np.float32))
-        for name, shifts in SETTINGS.items():
-            real[name][recording.name] = [EMOTIONS[k] for k in labels(enc, heard, shifts, perception)]
+        for name, setting in SETTINGS.items():
+            real[name][recording.name] = [EMOTIONS[k] for k in labels(enc, heard, setting, perception)]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     result = {"split": split, "takes": len(takes), "model": speech_model, "correct": table, "real": real}
@@ -79,7 +92,8 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "val") ->
     lines = ["# The emotion heard from one hearing or several", "",
              f"{len(takes)} takes of the {split} split, the voices the speech model never heard; every 10-s window "
              "(8-s hop). Share of the windows heard as the take's emotion; each setting averages the probabilities "
-             "of its hearings (as recorded, and the voice moved that many semitones up and down). Real read speech: "
+             "of its hearings (as recorded, the voice moved that many semitones up and down, and the others named). "
+             "Real read speech: "
              "windows heard as neutral (a check: no part of it chose anything).", "",
              "| hearings | " + " | ".join(names) + " | mean of the changes | real speech heard as neutral |",
              "|---|" + "---|" * (len(names) + 2)]
