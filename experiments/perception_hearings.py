@@ -4,7 +4,7 @@ The held-out takes of a split (the voices the speech model never heard) are play
 the robustness reports (:func:`emogesture.audio.wave_augment.recording_changes`, the two level changes left
 out: the perception is level-bound by design), and the real read speech (:mod:`emogesture.data.real_speech`;
 a check, never a criterion) as it is. Every 10-s window (8-s hop) is heard as recorded and with the voice
-moved ±1.5 and ±3 semitones (``SpeechLatentEncoder.encode(perception_semitones=...)``), and, beside the ±3
+moved ±1.5, ±3, ±4.5 or ±6 semitones (``SpeechLatentEncoder.encode(perception_semitones=...)``), and, beside the ±3
 semitones, through a telephone band or 6 dB louder and quieter (each of these an encoding of its own, so its
 noise suppression is measured on it); each setting's label is the argmax of the mean of its hearings'
 probabilities (:func:`emogesture.pipeline.perception.heard_probabilities`).
@@ -30,7 +30,8 @@ from emogesture.pipeline.perception import heard_probabilities, perception_of
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 
 # each setting: the pitch moves (semitones, heard up and down) and the other hearings beside the recording's own
-SETTINGS = {"once": ((), ()), "±1.5 st": ((1.5,), ()), "±3 st": ((3.0,), ()), "±1.5 and ±3 st": ((1.5, 3.0), ()),
+SETTINGS = {"once": ((), ()), "±1.5 st": ((1.5,), ()), "±3 st": ((3.0,), ()), "±4.5 st": ((4.5,), ()),
+            "±6 st": ((6.0,), ()), "±1.5 and ±3 st": ((1.5, 3.0), ()),
             "±3 st and a telephone band": ((3.0,), ("telephone",)),
             "±3 st and ±6 dB": ((3.0,), ("6 dB louder", "6 dB quieter"))}
 OTHER_HEARINGS = {"telephone": telephone, "6 dB louder": lambda w: np.clip(w * 10 ** (6 / 20), -1.0, 1.0),
@@ -38,7 +39,8 @@ OTHER_HEARINGS = {"telephone": telephone, "6 dB louder": lambda w: np.clip(w * 1
 
 
 def hearings(encoder: SpeechLatentEncoder, wave: np.ndarray) -> tuple[EncodedWindows, dict]:
-    heard: dict = {s: encoder.encode(wave, 16000, 8.0, perception_semitones=s)[0] for s in (1.5, 3.0)}
+    heard: dict = {s: encoder.encode(wave, 16000, 8.0, perception_semitones=s)[0]
+                   for s in sorted({s for shifts, _ in SETTINGS.values() for s in shifts})}
     for name, change in OTHER_HEARINGS.items():
         heard[name] = encoder.encode(np.asarray(change(wave), np.float32), 16000, 8.0, parts=("emotion",))[0]
     return heard[3.0], heard
