@@ -219,6 +219,11 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                   " (each emotion has two means: the training voices' and the real voices', the nearer counting "
                   "most; a window nearer the real voices' mean is animated with the training voices' latent of that "
                   "emotion)")
+    band_text = ("" if not perception.get("band_means") else
+                 " Each emotion has one more mean for the read-out alone: of the training takes heard through a "
+                 "telephone band, so that a recording made over a telephone line is compared with training speech "
+                 "heard the same way (the telephone row below); it changes what is heard, not the trust or the "
+                 "motion.")
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model
@@ -305,7 +310,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   frames less than 20 dB apart) is heard with that noise subtracted first, in proportion to how noisy it
   is (the generation setting `noise_suppression`; the white-noise row below). Digital silence (exact zeros:
   clips joined with inserted silence, a noise gate, padding), which no training recording has, is heard
-  as the recording's own quiet.{hearings_text} `--emotion own` keeps the raw
+  as the recording's own quiet.{hearings_text}{band_text} `--emotion own` keeps the raw
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;

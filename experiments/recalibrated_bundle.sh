@@ -16,7 +16,7 @@ rm -rf "$RUN/shipped"
 cp -r src/emogesture/assets/model "$RUN/shipped"  # ship_bundle replaces the package's copy
 cp "$REPORT/training_time.txt" "$RUN/times.txt"
 $EG calibrate speech --model "$RUN/shipped/speech.json" --data "$CACHE" --out "$RUN/speech_calibrated" --overwrite \
-    --real-voices "$REAL_VOICES"
+    "${PERCEPTION[@]}"
 $EG bundle --speech "$RUN/speech_calibrated" --gesture "$RUN/shipped/gesture.json" \
     --extractor "$RUN/shipped/extractor.json" --out "$RUN/bundle" --overwrite "${GENERATION[@]}"
 ship_bundle "$RUN/bundle" "$REPORT" "$RUN/times.txt"

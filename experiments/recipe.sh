@@ -13,8 +13,8 @@
 #      (`wave_variants`);
 #   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
 #   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
-#   4. the speech model's emotion perception (class means on train and of three real voices given each
-#      emotion, trust threshold on val), and the gesture model's fallback style for unfamiliar voices (the
+#   4. the speech model's emotion perception (class means on train, of three real voices given each
+#      emotion and of the train takes heard through a telephone band, trust threshold on val), and the gesture model's fallback style for unfamiliar voices (the
 #      training speaker whose style gives its typical motion on the val split's neutral windows);
 #   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
 #      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
@@ -25,6 +25,9 @@ SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semit
 # the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
 # the perception's calibration gives each emotion a mean of theirs too (4.); real_neutral.sh trains on them
 REAL_VOICES="fr_june, it_carlo, ru_ivr"
+# the recipe's perception calibration (4.): those voices' means, and each emotion's mean of the train takes heard
+# through a telephone band for the read-out (telephone_means.sh)
+PERCEPTION=(--real-voices "$REAL_VOICES" --telephone-means)
 # both speech stages: each training window's augmented recordings made once, 16 variants (wave_variants.sh)
 SPEECH_VARIANTS=(--set wave_variants=16)
 # the second stage: the pitch alone moved too (pitch_alone.sh), formants kept, as people's pitch differs
@@ -115,7 +118,7 @@ train_bundle() {  # RUN CACHE
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
     [ -f "$run/speech_calibrated/model.json" ] || $EG calibrate speech --model "$speech" --data "$cache" \
-        --out "$run/speech_calibrated" --real-voices "$REAL_VOICES"
+        --out "$run/speech_calibrated" "${PERCEPTION[@]}"
     [ -f "$run/gesture_styled/model.json" ] || $EG calibrate style --model "$run/gesture" --data "$cache" \
         --out "$run/gesture_styled"
     $EG bundle --speech "$run/speech_calibrated" --gesture "$run/gesture_styled" --extractor "$run/extractor" \

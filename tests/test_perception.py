@@ -206,6 +206,32 @@ def test_real_voices_emotions_get_their_own_means_beside_the_corpus():
     assert np.allclose(q.read(other, flat), both.read(other, flat))
 
 
+def test_telephone_band_means_change_what_is_heard_and_nothing_else():
+    train, labels = clusters(60, 0)
+    held, _ = clusters(20, 1)
+    offset = np.random.default_rng(6).normal(0, 4, 48)  # what the band does to every window
+    band, band_labels = clusters(20, 2, shift=offset)
+    plain = fit_perception(windows(train), labels, labels % 2, windows(held))
+    both = fit_perception(windows(train), labels, labels % 2, windows(held), band=windows(band),
+                          band_emotions=band_labels)
+    assert both.labels == plain.labels and both.band_labels == list(EMOTIONS)
+    assert both.info["band_windows"] == len(band_labels) and both.emotion.threshold == plain.emotion.threshold
+    heard, heard_labels = clusters(10, 3, shift=offset)  # other windows through the same band
+    flat = np.zeros((len(heard), 8))
+    assert (plain.read(heard, flat).argmax(1) == heard_labels).mean() < 0.5
+    assert (both.read(heard, flat).argmax(1) == heard_labels).mean() > 0.9
+    # the trust, the latents auto animates and the real-voice posterior are the corpus's alone
+    assert np.array_equal(both.trust(heard, heard), plain.trust(heard, heard))
+    assert np.array_equal(both.in_corpus_frame(heard), heard) and both.real_voices_posterior(heard) is None
+    assert np.allclose(auto_emotion(heard, heard, both), auto_emotion(heard, heard, plain))
+    inside = held[plain.emotion.nearest(held) <= plain.emotion.threshold][:20]
+    assert (both.read(inside, np.zeros((len(inside), 8))).argmax(1)
+            == plain.read(inside, np.zeros((len(inside), 8))).argmax(1)).mean() >= 0.95
+    q = EmotionPerception.from_dict(both.to_dict())
+    assert np.allclose(q.read(heard, flat), both.read(heard, flat))
+    assert EmotionPerception.from_dict(plain.to_dict()).band_means is None
+
+
 def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp_path, monkeypatch):
     from emogesture.assets import bundled_model_file
     from emogesture.data import real_speech
@@ -224,6 +250,39 @@ def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp
         calibrate_perception_run(bundled_model_file("speech"), tmp_path / "no_cache", tmp_path / "out",
                                  real_voices=["es_allison"])
     assert not (tmp_path / "out").exists()
+
+
+def test_telephone_band_latents_hear_every_take_of_the_split_through_the_band(tmp_path):
+    import soundfile as sf
+
+    from emogesture.assets import bundled_model_file
+    from emogesture.pipeline.perception import telephone_band_latents
+    from emogesture.pipeline.speech import SpeechLatentEncoder
+
+    t = np.arange(20 * 16000) / 16000
+    hum = (0.1 * (np.sin(2 * np.pi * 3 * t) > -0.3) * np.sin(2 * np.pi * 150 * t)).astype(np.float32)
+    (tmp_path / "wave16k").mkdir()
+    sf.write(tmp_path / "wave16k" / "a.wav", hum, 16000)
+    sf.write(tmp_path / "wave16k" / "b.wav", hum[: 12 * 16000], 16000)
+
+    class Split:
+        def take_emotions(self):
+            return {"a": 3, "b": 0}
+
+    class Cache:
+        manifest = {"root": str(tmp_path)}
+
+        def split(self, name):
+            assert name == "train"
+            return Split()
+
+    encoder = SpeechLatentEncoder.from_run(bundled_model_file("speech"))
+    band, emotions = telephone_band_latents(encoder, Cache())
+    clean = encoder.encode(hum, parts=("emotion",), hop_seconds=8.0)[0]
+    n = len(clean.emotion)
+    assert emotions.tolist() == [3] * n + [0] * (len(emotions) - n) and len(emotions) > n
+    assert band.emotion.shape == (len(emotions), encoder.loaded.config.latent_dim) and np.isfinite(band.emotion).all()
+    assert not np.allclose(band.emotion[:n], clean.emotion, atol=1e-3)  # heard through the band, not as recorded
 
 
 def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():

@@ -53,6 +53,15 @@ real voices' mean has its emotion latent moved by the offset from that mean to t
 emotion (:meth:`EmotionPerception.in_corpus_frame`), so the gesture model gets the latent of the emotion heard
 in a place it learned, not the real voice's own.
 
+A telephone line takes away the voice's band below 300 Hz and above 3.4 kHz and moves every window's emotion
+latent with it; the corpus's emotion means alone then read held-out voices heard through a telephone band
+right less often than the same voices as recorded. A calibration with ``--telephone-means`` gives each
+emotion one more mean, of the training takes heard through a telephone band (:func:`telephone_band_latents`),
+which only the read-out uses (:meth:`EmotionPerception.read_range`: the head plus the posterior summed over
+each emotion's means, within the same threshold). The trust, the neutral mean and the latents ``auto``
+animates stay the corpus's: a telephone recording is heard better, not animated differently
+(`experiments/README.md`, "Telephone-band means").
+
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
 emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
@@ -75,11 +84,13 @@ from __future__ import annotations
 import json
 from collections import Counter
 from pathlib import Path
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from os import PathLike
 
 import numpy as np
 
+from emogesture.audio import load_audio
+from emogesture.audio.wave_augment import telephone
 from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
                                     stored_weights_dtype, trained_splits)
 from emogesture.data.beat import EMOTIONS
@@ -168,18 +179,30 @@ class EmotionPerception:
     voice: LatentRange  # style latent around the training speakers' means
     info: dict  # how it was measured (splits, windows, quantile)
     temperature: float = 1.0  # divides the read-out's summed log-probabilities within the range (read)
+    #: the emotion of each of ``band_means``: each emotion's mean of the training windows heard through a
+    #: telephone band, which only the read-out uses (module docstring); empty without them
+    band_labels: list[str] = field(default_factory=list)
+    band_means: np.ndarray | None = None  # [B, D]
 
     def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
         return np.minimum(self.emotion.trust(emotion), self.voice.trust(style))
 
+    def read_range(self) -> LatentRange:
+        """The emotion range the read-out uses: :attr:`emotion` with the telephone band's means beside its own
+        (the same spread and threshold); :attr:`emotion` itself without them."""
+        if self.band_means is None or not len(self.band_labels):
+            return self.emotion
+        return replace(self.emotion, means=np.concatenate([self.emotion.means, self.band_means]))
+
     def summed(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         """The head's log-probabilities plus the emotion means' log-posteriors, ``[W, 8]`` over ``EMOTIONS``
-        (an emotion with several means: their posteriors summed; one the calibration never saw has no mean:
-        ``-inf``), from emotion latents ``[W, D]`` and head logits ``[W, 8]``; neither tempered nor
-        renormalised."""
+        (an emotion with several means, the real voices' and the telephone band's: their posteriors summed;
+        one the calibration never saw has no mean: ``-inf``), from emotion latents ``[W, D]`` and head logits
+        ``[W, 8]``; neither tempered nor renormalised."""
         means = np.full((len(logits), len(EMOTIONS)), -np.inf)
-        for label, posterior in zip(self.labels, self.emotion.log_posteriors(emotion).T):
+        labels = self.labels + self.band_labels
+        for label, posterior in zip(labels, self.read_range().log_posteriors(emotion).T):
             k = EMOTIONS.index(label)
             means[:, k] = np.logaddexp(means[:, k], posterior)
         return log_softmax(logits) + means
@@ -189,7 +212,7 @@ class EmotionPerception:
         windows' emotion latents ``[W, D]`` and classifier-head logits ``[W, 8]``: :meth:`summed` divided by
         :attr:`temperature` and renormalised where the emotion latent lies within the calibrated range, the
         head's alone elsewhere (module docstring)."""
-        inside = self.emotion.nearest(emotion) <= self.emotion.threshold
+        inside = self.read_range().nearest(emotion) <= self.emotion.threshold
         if not inside.any():
             return log_softmax(logits)
         return np.where(inside[:, None], log_softmax(self.summed(emotion, logits) / self.temperature),
@@ -235,24 +258,32 @@ class EmotionPerception:
         return self.voice.means[self.typical_speaker()]
 
     def to_dict(self) -> dict:
-        return {"labels": list(self.labels), "emotion": self.emotion.to_dict(), "voice": self.voice.to_dict(),
-                "info": self.info, "temperature": self.temperature}
+        d = {"labels": list(self.labels), "emotion": self.emotion.to_dict(), "voice": self.voice.to_dict(),
+             "info": self.info, "temperature": self.temperature}
+        if self.band_means is not None:
+            d.update(band_labels=list(self.band_labels), band_means=self.band_means.tolist())
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> "EmotionPerception":
+        band = d.get("band_means")
         return cls(list(d["labels"]), LatentRange.from_dict(d["emotion"]), LatentRange.from_dict(d["voice"]),
-                   dict(d.get("info", {})), float(d.get("temperature", 1.0)))
+                   dict(d.get("info", {})), float(d.get("temperature", 1.0)), list(d.get("band_labels", [])),
+                   None if band is None else np.asarray(band, np.float64))
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
                    quantile: float = TRUST_QUANTILE, held_out_emotions: np.ndarray | None = None,
-                   real: EncodedWindows | None = None, real_emotions: np.ndarray | None = None) -> EmotionPerception:
+                   real: EncodedWindows | None = None, real_emotions: np.ndarray | None = None,
+                   band: EncodedWindows | None = None, band_emotions: np.ndarray | None = None) -> EmotionPerception:
     """Emotion means (by ``emotions`` ``[N]``, indices into ``EMOTIONS``) and speaker means (by
     ``speakers`` ``[N]``) with their within-class spread from training windows; each threshold is the
     ``quantile`` of the held-out windows' distances; with the held-out windows' emotions ``[M]``, the
     read-out's temperature is fitted on those within the range (:func:`fit_temperature`). With ``real``
     windows of real voices given the corpus's emotions (``real_emotions`` ``[R]``), each of their emotions
-    gets a second mean beside the corpus's (the spread stays the training windows')."""
+    gets a second mean beside the corpus's (the spread stays the training windows'). With ``band`` windows
+    (training speech heard through a telephone band, emotions ``band_emotions`` ``[B]``), each of their
+    emotions gets a mean that only the read-out uses (:meth:`EmotionPerception.read_range`)."""
     emotions, speakers = np.asarray(emotions), np.asarray(speakers)
     present = sorted(set(emotions.tolist()))
     if EMOTIONS.index("neutral") not in present:
@@ -274,6 +305,13 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
     if real is not None:
         info["real_windows"] = int(len(real_emotions))
     perception = EmotionPerception(labels, emotion, voice, info)
+    if band is not None:
+        band_emotions = np.asarray(band_emotions)
+        heard = sorted(set(band_emotions.tolist()))
+        perception.band_labels = [EMOTIONS[k] for k in heard]
+        perception.band_means = np.stack([np.asarray(band.emotion, np.float64)[band_emotions == k].mean(0)
+                                          for k in heard])
+        info["band_windows"] = int(len(band_emotions))
     if held_out_emotions is not None:
         inside = d_emotion <= emotion.threshold
         perception.temperature = fit_temperature(perception, held_out.emotion[inside], held_out.emotion_logits[inside],
@@ -447,12 +485,14 @@ def fallback_style_of(gesture: LoadedModel) -> np.ndarray | None:
 def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike[str], out: str | PathLike[str],
                              split: str = "val", quantile: float = TRUST_QUANTILE, overwrite: bool = False,
                              real_voices: list[str] | tuple[str, ...] = (),
-                             real_stretches: int = REAL_STRETCHES) -> EmotionPerception:
+                             real_stretches: int = REAL_STRETCHES, telephone_means: bool = False) -> EmotionPerception:
     """Write a copy of the speech model of ``run`` to ``out`` with its emotion perception: means and
     spread from the cache's ``train`` windows, the threshold from ``split`` (which the model must not
     have trained on; its run records the training splits). With ``real_voices`` (names of
     :data:`emogesture.data.real_speech.TRAINING_VOICES`), also means of those real voices given each of the
-    synthetic corpus's emotions (``real_stretches`` 10-s stretches of each; module docstring)."""
+    synthetic corpus's emotions (``real_stretches`` 10-s stretches of each; module docstring). With
+    ``telephone_means``, also each emotion's mean of the ``train`` takes heard through a telephone band, for the
+    read-out only (:func:`telephone_band_latents`)."""
     if not 0.5 <= quantile < 1.0:
         raise EmogestureError(f"quantile {quantile}: must be in [0.5, 1)")
     if split in ("train", "test"):
@@ -478,14 +518,34 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
             raise EmogestureError(f"{root}: real voices are given the emotions of a synthetic corpus, and this "
                                   f"cache's corpus is not one ({e})") from None
         real, real_emotions = real_voice_latents(encoder, list(real_voices), real_stretches, scale)
+    band = band_emotions = None
+    if telephone_means:
+        band, band_emotions = telephone_band_latents(encoder, cache)
     perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile,
-                                held_out_emotions=cache.split(split).emotion, real=real, real_emotions=real_emotions)
+                                held_out_emotions=cache.split(split).emotion, real=real, real_emotions=real_emotions,
+                                band=band, band_emotions=band_emotions)
     perception.info.update(split=split, trained_on=trained_on)
     if real_voices:
         perception.info.update(real_voices=list(real_voices), real_stretches=int(real_stretches))
     metadata = loaded.metadata.replace(train_splits=trained_on, emotion_perception=perception.to_dict())
     save_model(out, "speech", loaded.model, loaded.config, metadata, weights_dtype=stored_weights_dtype(loaded))
     return perception
+
+
+def telephone_band_latents(encoder: SpeechLatentEncoder, cache, split: str = "train",
+                           hop_seconds: float = 8.0) -> tuple[EncodedWindows, np.ndarray]:
+    """Every take of a cache's ``split`` heard through a telephone band
+    (:func:`emogesture.audio.wave_augment.telephone`), as ``generate`` hears a recording (10-s windows every
+    ``hop_seconds``) -> their windows' emotion latents and logits, and each window's emotion ``[N]``."""
+    root = Path(cache.manifest["root"])
+    encoded, emotions = [], []
+    for take, emotion in cache.split(split).take_emotions().items():
+        wave, _ = load_audio(root / "wave16k" / f"{take}.wav")  # a clear one-line error when it is missing
+        enc = encoder.encode(np.asarray(telephone(wave), np.float32), hop_seconds=hop_seconds, parts=("emotion",))[0]
+        encoded.append(enc)
+        emotions += [emotion] * len(enc.emotion)
+    windows = EncodedWindows(*(np.concatenate([getattr(e, k) for e in encoded]) for k in EncodedWindows.stored))
+    return windows, np.asarray(emotions)
 
 
 def real_voice_latents(encoder: SpeechLatentEncoder, names: list[str], stretches: int,
