@@ -88,6 +88,7 @@ from dataclasses import dataclass, field, replace
 from os import PathLike
 
 import numpy as np
+from tqdm import tqdm
 
 from emogesture.audio import load_audio
 from emogesture.audio.wave_augment import telephone
@@ -539,7 +540,9 @@ def telephone_band_latents(encoder: SpeechLatentEncoder, cache, split: str = "tr
     ``hop_seconds``) -> their windows' emotion latents and logits, and each window's emotion ``[N]``."""
     root = Path(cache.manifest["root"])
     encoded, emotions = [], []
-    for take, emotion in cache.split(split).take_emotions().items():
+    takes = cache.split(split).take_emotions()
+    for take, emotion in tqdm(takes.items(), total=len(takes), desc="train takes through a telephone band",
+                              unit="take", disable=None):
         wave, _ = load_audio(root / "wave16k" / f"{take}.wav")  # a clear one-line error when it is missing
         enc = encoder.encode(np.asarray(telephone(wave), np.float32), hop_seconds=hop_seconds, parts=("emotion",))[0]
         encoded.append(enc)
