@@ -221,9 +221,9 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                   "emotion)")
     band_text = ("" if not perception.get("band_means") else
                  " Each emotion has one more mean for the read-out alone: of the training takes heard through a "
-                 "telephone band, so that a recording made over a telephone line is compared with training speech "
-                 "heard the same way (the telephone row below); it changes what is heard, not the trust or the "
-                 "motion.")
+                 "simulated telephone band, so that a recording through such a band is compared with training speech "
+                 "heard the same way (the telephone row below; no real telephone recording with a known emotion "
+                 "was at hand to check); it changes what is heard, not the trust or the motion.")
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     text = f"""# Model card: the bundled emogesture model

@@ -6,6 +6,7 @@
 #   - perception_shift.py on val (the val speakers' voices, never trained on, through changed recordings);
 #   - real_perception.py: the real recordings (never trained or calibrated on) at three gains.
 # Reports in experiments/reports/telephone_means/ (val only). About 25 min on 2 CPU cores; every step resumes.
+# BASE is a model calibrated without telephone-band means (for the report, the bundle shipped before them).
 # Usage: experiments/telephone_means.sh BASE_SPEECH_MODEL
 set -euo pipefail
 BASE=${1:?usage: experiments/telephone_means.sh BASE_SPEECH_MODEL}

@@ -2,7 +2,8 @@
 # More telephone-band windows in the second speech stage: the recipe's second stage (recipe.sh,
 # speech_second_stage: 700 steps from make model's first stage) trained once with 0.35 of its augmented
 # windows heard through a telephone band (`--set wave.telephone=0.35`; the recipe: 0.15) and once as the
-# recipe has it (the control, the same first stage), each calibrated as the recipe does; then
+# recipe has it (the control, the same first stage), each calibrated with the studio voices' means (the recipe's
+# calibration before its telephone-band means: telephone_means.sh); then
 # perception_shift.py on val (the val speakers' voices, never trained on, through changed recordings) for
 # both and for BASE (the shipped speech model, as calibrated).
 # Reports in experiments/reports/telephone_share/ (val only). About 50 min on 2 CPU cores once make model's
@@ -21,7 +22,7 @@ grep -qs '"step": 1300' "$FIRST/model.json" || { echo "train make model's first 
 speech_second_stage "$RUN/telephone" "$FIRST" "$CACHE" "$RUN/times.txt" --set wave.telephone=0.35
 speech_second_stage "$RUN/control" "$FIRST" "$CACHE" "$RUN/times.txt"
 for name in telephone control; do
-    speech_calibrated "${name}_calibrated" "$RUN/$name" --real-voices "$REAL_VOICES"
+    speech_calibrated "${name}_calibrated" "$RUN/$name" --real-voices "$REAL_VOICES"  # as the shipped model was
 done
 perception_val telephone_calibrated control_calibrated
 [ -f "$REPORT/perception_base/perception_shift.md" ] || \

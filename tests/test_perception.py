@@ -230,6 +230,10 @@ def test_telephone_band_means_change_what_is_heard_and_nothing_else():
     q = EmotionPerception.from_dict(both.to_dict())
     assert np.allclose(q.read(heard, flat), both.read(heard, flat))
     assert EmotionPerception.from_dict(plain.to_dict()).band_means is None
+    broken = both.to_dict()
+    broken["band_labels"] = broken["band_labels"][:-1]
+    with pytest.raises(EmogestureError, match="7 telephone-band labels for telephone-band means of shape"):
+        EmotionPerception.from_dict(broken)
 
 
 def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp_path, monkeypatch):

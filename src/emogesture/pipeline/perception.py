@@ -53,14 +53,15 @@ real voices' mean has its emotion latent moved by the offset from that mean to t
 emotion (:meth:`EmotionPerception.in_corpus_frame`), so the gesture model gets the latent of the emotion heard
 in a place it learned, not the real voice's own.
 
-A telephone line takes away the voice's band below 300 Hz and above 3.4 kHz and moves every window's emotion
-latent with it; the corpus's emotion means alone then read held-out voices heard through a telephone band
-right less often than the same voices as recorded. A calibration with ``--telephone-means`` gives each
+A telephone band (below 300 Hz and above 3.4 kHz taken away) moves every window's emotion latent; the
+corpus's emotion means alone then read held-out voices played through a simulated telephone band
+(:func:`emogesture.audio.wave_augment.telephone`) right less often than the same voices as recorded. A calibration with ``--telephone-means`` gives each
 emotion one more mean, of the training takes heard through a telephone band (:func:`telephone_band_latents`),
 which only the read-out uses (:meth:`EmotionPerception.read_range`: the head plus the posterior summed over
 each emotion's means, within the same threshold). The trust, the neutral mean and the latents ``auto``
-animates stay the corpus's: a telephone recording is heard better, not animated differently
-(`experiments/README.md`, "Telephone-band means").
+animates stay the corpus's: such a recording is heard better, not animated differently
+(`experiments/README.md`, "Telephone-band means"; measured on that simulated band only, as no real telephone
+recording with a known emotion is at hand).
 
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
@@ -268,9 +269,16 @@ class EmotionPerception:
     @classmethod
     def from_dict(cls, d: dict) -> "EmotionPerception":
         band = d.get("band_means")
+        if band is not None:
+            band = np.asarray(band, np.float64)
+            means = np.asarray(d["emotion"]["means"])
+            if band.ndim != 2 or band.shape[1:] != means.shape[1:] or len(band) != len(d.get("band_labels", [])):
+                raise EmogestureError(f"emotion perception: {len(d.get('band_labels', []))} telephone-band labels for "
+                                      f"telephone-band means of shape {band.shape}; the emotion means are "
+                                      f"{means.shape}")
         return cls(list(d["labels"]), LatentRange.from_dict(d["emotion"]), LatentRange.from_dict(d["voice"]),
                    dict(d.get("info", {})), float(d.get("temperature", 1.0)), list(d.get("band_labels", [])),
-                   None if band is None else np.asarray(band, np.float64))
+                   band)
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
@@ -536,8 +544,8 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
 def telephone_band_latents(encoder: SpeechLatentEncoder, cache, split: str = "train",
                            hop_seconds: float = 8.0) -> tuple[EncodedWindows, np.ndarray]:
     """Every take of a cache's ``split`` heard through a telephone band
-    (:func:`emogesture.audio.wave_augment.telephone`), as ``generate`` hears a recording (10-s windows every
-    ``hop_seconds``) -> their windows' emotion latents and logits, and each window's emotion ``[N]``."""
+    (:func:`emogesture.audio.wave_augment.telephone`: 300–3400 Hz, 8 kHz, μ-law), in 10-s windows every
+    ``hop_seconds`` -> their windows' emotion latents and logits, and each window's emotion ``[N]``."""
     root = Path(cache.manifest["root"])
     encoded, emotions = [], []
     takes = cache.split(split).take_emotions()
