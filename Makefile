@@ -9,13 +9,13 @@ PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
 # exports (its glTF importer needs python3-numpy); pocketsphinx-testdata and asterisk-core-sounds-en-g722 hold real
-# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 and asterisk-prompt-{es-co,fr-armelle,it-menardi-wav} real voices a speech model can learn from (experiments/real_neutral.sh); Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
+# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 and asterisk-prompt-{es-co,fr-armelle,it-menardi-wav} and klettres-data real voices a speech model can learn from (experiments/real_neutral.sh), ktuberling-data real voices to validate on (experiments/word_readers.py); Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
 # driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
 	pocketsphinx-testdata asterisk-core-sounds-en-g722 asterisk-core-sounds-fr-g722 asterisk-core-sounds-it-g722 \
 	asterisk-core-sounds-ru-g722 asterisk-prompt-es-co asterisk-prompt-fr-armelle asterisk-prompt-it-menardi-wav \
-	chromium chromium-driver
+	klettres-data ktuberling-data chromium chromium-driver
 GLTF_VALIDATOR := build/node/node_modules/three/package.json
 DEMO_DIR ?= outputs/demo
 CLIPS := src/emogesture/assets/demo

@@ -152,6 +152,19 @@ def fallback_table(record: dict) -> str:
             f"| the windows' own (reference) | {ref['in_front']:.1%} | {ref['wrist_distance']:.3f} | - |\n{rows}\n")
 
 
+def word_readers_text(path: Path) -> str:
+    """The model's perception of the validation set of real voices (``word_readers.py``), when measured."""
+    if not path.is_file():
+        return ""
+    r = next(iter(json.loads(path.read_text()).values()))
+    heard = Counter(k for reader in r["readers"].values() for k in reader["heard"])
+    return (f"\n  More real voices tell the same, worse: {len(r['readers'])} volunteers reading word lists (KDE's "
+            f"KTuberling, `experiments/word_readers.py`; never trained or calibrated on) are heard as neutral in "
+            f"{r['neutral_share']:.0%} of {sum(heard.values())} stretches ({heard_text(heard)}), trusted in "
+            f"{r['trusted_share']:.0%}; given each emotion's prosody as the corpus gives it, they are heard as that "
+            f"emotion in {r['emotions_mean']:.0%} (mean of the seven).")
+
+
 def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     bundle, report = Path(bundle), Path(report)
     real = json.loads((report / "real" / "real_speech.json").read_text())
@@ -219,6 +232,7 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                   " (each emotion has two means: the training voices' and the real voices', the nearer counting "
                   "most; a window nearer the real voices' mean is animated with the training voices' latent of that "
                   "emotion)")
+    readers_text = word_readers_text(report / "word_readers" / "word_readers.json")
     band_text = ("" if not perception.get("band_means") else
                  " Each emotion has one more mean for the read-out alone: of the training takes heard through a "
                  "simulated telephone band, so that a recording through such a band is compared with training speech "
@@ -293,7 +307,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   acted emotion, are heard as {heard_real}), and set it yourself where it matters. Recording by
   recording: {real_recording_text(real)}. A window `--emotion auto` trusts is one whose speech lies
   within the range of the training speech, not one whose emotion is right: a trusted window is animated
-  with the emotion heard, right or wrong, where the windows beyond the range are animated as neutral.
+  with the emotion heard, right or wrong, where the windows beyond the range are animated as neutral.{readers_text}
 - **What `generate` does about it.** It prints the emotion it perceives (majority over 10-s windows,
   with its mean probability) and writes every window's perception to `*_perception.json`. A window's
   emotion is read by the speech model's classifier and, where the window's emotion latent lies near an

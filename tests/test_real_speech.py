@@ -112,6 +112,24 @@ def test_a_training_voice_leaves_out_damaged_and_silent_clips(tmp_path, monkeypa
         load_training_voice("fr_june")
 
 
+def test_a_voice_decoded_clip_by_clip_takes_clips_of_any_rate_and_leaves_out_damaged_ones(tmp_path):
+    import soundfile as sf
+
+    from emogesture.data.real_speech import TrainingVoice, load_voice
+
+    t8, t22 = np.arange(8000) / 8000, np.arange(22050) / 22050
+    sf.write(tmp_path / "a.wav", (0.3 * np.sin(2 * np.pi * 220 * t8)).astype(np.float32), 8000)
+    (tmp_path / "b.wav").write_bytes(b"RIFF not a wave at all")
+    sf.write(tmp_path / "c.wav", (0.3 * np.sin(2 * np.pi * 220 * t22[:11025])).astype(np.float32), 22050)
+    voice = TrainingVoice("letters_xx", "", tmp_path, "klettres-data", "*.wav", clip_by_clip=True)
+    wave = load_voice(voice)
+    assert wave.dtype == np.float32 and abs(len(wave) - 1.5 * 16000) < 200  # a (8 kHz) and c (22.05 kHz); b out
+    (tmp_path / "a.wav").write_bytes(b"garbage")
+    (tmp_path / "c.wav").write_bytes(b"garbage")
+    with pytest.raises(EmogestureError, match="letters_xx: ffmpeg could not decode"):
+        load_voice(voice)
+
+
 def test_training_voices_speak_every_emotion_as_the_corpus_gives_it(monkeypatch):
     from emogesture.data import real_speech
     from emogesture.data.beat import EMOTIONS
@@ -120,7 +138,8 @@ def test_training_voices_speak_every_emotion_as_the_corpus_gives_it(monkeypatch)
     t = np.arange(40 * 16000) / 16000
     voiced = (np.sin(2 * np.pi * 3 * t) > -0.3).astype(np.float32)  # syllables and pauses
     hum = (0.1 * voiced * np.sin(2 * np.pi * 150 * t)).astype(np.float32)
-    monkeypatch.setattr(real_speech, "load_training_voice", lambda name: hum)
+    monkeypatch.setattr(real_speech, "load_voice", lambda voice: hum)
+    monkeypatch.setattr(real_speech, "real_voice", lambda name: name)
     waves, labels = training_voice_emotions(["a", "b"], 2, 1.5, seed=3)
     assert labels.tolist() == list(range(8)) * 4 and all(len(w) <= 160000 and len(w) > 150000 for w in waves)
     assert np.array_equal(waves[0], hum[:160000])  # neutral as recorded
@@ -136,8 +155,26 @@ def test_training_voices_speak_every_emotion_as_the_corpus_gives_it(monkeypatch)
 def test_the_training_voices_are_whole():
     from emogesture.data.real_speech import TRAINING_VOICES, load_training_voice
 
-    for name in TRAINING_VOICES:
+    for name in (n for n in TRAINING_VOICES if not n.startswith("letters_")):
         wave = load_training_voice(name)
         assert wave.dtype == np.float32 and 8 * 60 < len(wave) / 16000 < 30 * 60, name
         frames = np.sqrt((wave[: len(wave) // 160 * 160].reshape(-1, 160) ** 2).mean(1))
         assert np.quantile(frames, 0.9) > 0.02 and (frames < 0.1 * np.quantile(frames, 0.9)).mean() > 0.02, name
+
+
+def test_the_list_readers_decode_clip_by_clip(tmp_path):
+    """One letter reader and the word readers of each file format (Ogg Vorbis, WAV, Opus): whole, speech; the
+    word readers, a validation set, are never a calibration's voices."""
+    from emogesture.data.real_speech import TRAINING_VOICES, WORD_READERS, load_voice, real_voice
+    from emogesture.pipeline.perception import calibrate_perception_run
+
+    for name in ("letters_ar", "words_en", "words_fr", "words_nn"):
+        wave = load_voice(real_voice(name))
+        assert wave.dtype == np.float32 and 50 < len(wave) / 16000 < 300, name
+        frames = np.sqrt((wave[: len(wave) // 160 * 160].reshape(-1, 160) ** 2).mean(1))
+        assert np.quantile(frames, 0.9) > 0.02 and (frames < 0.1 * np.quantile(frames, 0.9)).mean() > 0.02, name
+    assert len(WORD_READERS) == 13 and not set(WORD_READERS) & set(TRAINING_VOICES)
+    with pytest.raises(EmogestureError, match="real voice 'words_xx': unknown"):
+        real_voice("words_xx")
+    with pytest.raises(EmogestureError, match="real voice 'words_en': unknown"):
+        calibrate_perception_run(tmp_path, tmp_path, tmp_path / "out", real_voices=["letters_ar", "words_en"])

@@ -25,7 +25,14 @@ a Colombian Spanish voice, 9 min; ``asterisk-prompt-fr-armelle``, GPL, a French 
 emotion, so a speech model may learn from them that a real voice reading evenly is neutral
 (``train speech --set real_neutral=...``) and, given an emotion's corpus prosody, that emotion
 (``real_emotion_share``). The Mexican Spanish core prompts are left out: their voice is the English check
-recording's (Allison Smith), and a check voice is never trained on.
+recording's (Allison Smith), and a check voice is never trained on. Ten more are volunteers, not professionals,
+each reading the letters and syllables of a language aloud for KDE's KLettres (``klettres-data``, GPL-2+;
+:data:`LETTER_READERS`, 45 s to 21 min each, their own microphones and rooms).
+
+**Real voices for validation** (:data:`WORD_READERS`): thirteen more volunteers, each reading the names of
+KDE's KTuberling stamps in a language (``ktuberling-data``, GPL-2+). Neither trained nor calibrated on, and of
+languages none of the letter readers speaks: choices about real voices are made on them, and the check
+recordings above are kept for the final score.
 """
 
 from __future__ import annotations
@@ -53,6 +60,13 @@ ASTERISK_PROMPTS = Path("/usr/share/asterisk/sounds/en_US_f_Allison")
 GAP_SECONDS = 0.3
 STRETCH_SECONDS = 13  # training_voice_emotions
 ASTERISK_SOUNDS = Path("/usr/share/asterisk/sounds")
+KLETTRES_SOUNDS = Path("/usr/share/klettres")
+KTUBERLING_SOUNDS = Path("/usr/share/ktuberling/sounds")
+#: KLettres' languages whose letters a perception may learn from (``klettres-data``, GPL-2+; each read by one
+#: volunteer): only those of no KTuberling voice (:data:`WORD_READERS`), so that no reader is in both.
+LETTER_READERS = {"ar": "Arabic", "cs": "Czech", "es": "Spanish", "he": "Hebrew", "hu": "Hungarian",
+                  "it": "Italian", "ml": "Malayalam", "nl": "Dutch", "pt_BR": "Brazilian Portuguese",
+                  "tn": "Setswana"}
 
 
 @dataclass(frozen=True)
@@ -123,14 +137,15 @@ def real_recordings(root: str | PathLike[str] | None = None) -> list[RealRecordi
 
 @dataclass(frozen=True)
 class TrainingVoice:
-    """A real voice to train on: every clip matching ``pattern`` under ``folder`` (where Debian's ``package``
-    installs it)."""
+    """A real voice to train on (or, :data:`WORD_READERS`, to validate on): every clip matching ``pattern`` under
+    ``folder`` (where Debian's ``package`` installs it)."""
 
     name: str
     description: str
     folder: Path
     package: str
     pattern: str = "*.g722"
+    clip_by_clip: bool = False  # decode each clip alone (clips whose codec settings differ, as Ogg Vorbis's do)
 
 
 TRAINING_VOICES: dict[str, TrainingVoice] = {v.name: v for v in (
@@ -146,7 +161,17 @@ TRAINING_VOICES: dict[str, TrainingVoice] = {v.name: v for v in (
                   "asterisk-prompt-fr-armelle", "*.gsm"),
     TrainingVoice("it_menardi", "Paola Dal Zot, Italian telephone prompts, 8 kHz",
                   ASTERISK_SOUNDS / "it_IT_f_Menardi", "asterisk-prompt-it-menardi-wav", "*.wav"),
+    *(TrainingVoice(f"letters_{lang.lower()}", f"KLettres' {language} letters and syllables, read aloud",
+                    KLETTRES_SOUNDS / lang, "klettres-data", "*.ogg", True) for lang, language in LETTER_READERS.items()),
 )}
+
+#: Real people reading word lists: KDE's KTuberling speaks the name of each stamp in the language of its
+#: sound theme, each read by its own volunteer (``ktuberling-data``, GPL-2+). Never trained or calibrated on:
+#: a validation set of real voices, as the check recordings are its test set. Only themes of at least 50 s.
+WORD_READERS: dict[str, TrainingVoice] = {f"words_{lang}": TrainingVoice(
+    f"words_{lang}", f"KTuberling's {lang} stamp names, read aloud", KTUBERLING_SOUNDS / lang, "ktuberling-data",
+    {"fr": "*.wav", "nn": "*.opus"}.get(lang, "*.ogg"), True)
+    for lang in ("ca", "da", "de", "el", "en", "fr", "gl", "lt", "nn", "ru", "sl", "uk", "wa")}
 
 
 def _decode(clips: list[Path]) -> tuple[bytes, str]:
@@ -166,13 +191,36 @@ def load_training_voice(name: str) -> np.ndarray:
     left out, and so are clips of pure silence (a ``silence`` folder)."""
     if name not in TRAINING_VOICES:
         raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
-    voice = TRAINING_VOICES[name]
+    return load_voice(TRAINING_VOICES[name])
+
+
+def real_voice(name: str) -> TrainingVoice:
+    """The real voice ``name``: a training voice (:data:`TRAINING_VOICES`) or a validation voice
+    (:data:`WORD_READERS`)."""
+    voices = TRAINING_VOICES | WORD_READERS
+    if name not in voices:
+        raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(voices)}")
+    return voices[name]
+
+
+def load_voice(voice: TrainingVoice) -> np.ndarray:
+    """Every clip of ``voice`` in path order, decoded and joined -> a 16-kHz waveform ``[N]`` float32 (as
+    :func:`load_training_voice`)."""
+    name = voice.name
     clips = sorted(c for c in voice.folder.rglob(voice.pattern) if "silence" not in c.relative_to(voice.folder).parts) \
         if voice.folder.is_dir() else []
     if not clips:
         raise InputFileError(voice.folder, f"no {voice.pattern} clips; install Debian's {voice.package}")
     if shutil.which("ffmpeg") is None:
         raise EmogestureError(f"real voice {name}: ffmpeg is needed to decode its clips")
+    if voice.clip_by_clip:  # a clip ffmpeg cannot read is left out
+        decoded = [_decode([c]) for c in clips]
+        data = b"".join(d for d, _ in decoded)
+        if not data:
+            raise EmogestureError(f"real voice {name}: ffmpeg could not decode {voice.folder}: "
+                                  f"{decoded[-1][1][-200:]}")
+        wave = np.frombuffer(data, "<i2").astype(np.float32) / 32768.0
+        return wave - wave.mean()
     while True:  # ffmpeg's concat demuxer stops at a clip it cannot open (and exits with 0): leave it out, again
         data, errors = _decode(clips)
         damaged = [c for c in clips if f"'{c}'" in errors]
@@ -198,7 +246,7 @@ def training_voice_emotions(names: list[str], stretches: int, prosody_scale: flo
     waves: list[np.ndarray] = []
     labels: list[int] = []
     for v, name in enumerate(names):
-        wave = load_training_voice(name)
+        wave = load_voice(real_voice(name))
         seconds = len(wave) // SAMPLE_RATE
         if seconds < STRETCH_SECONDS:
             raise EmogestureError(f"real voice {name}: {seconds} s, too short for a {STRETCH_SECONDS}-s stretch")
