@@ -115,6 +115,14 @@ def log_softmax(x: np.ndarray) -> np.ndarray:
     return x - np.log(np.exp(x).sum(1, keepdims=True))
 
 
+def class_means(latents: np.ndarray, labels: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """The classes present in ``labels`` ``[N]`` (sorted) and each one's mean of ``latents`` ``[N, D]``
+    -> (classes, means ``[K, D]``, in the latents' dtype)."""
+    labels = np.asarray(labels)
+    classes = sorted(set(labels.tolist()))
+    return classes, np.stack([latents[labels == k].mean(0) for k in classes])
+
+
 @dataclass
 class LatentRange:
     """Where one latent lies on training speech: class means and a Mahalanobis distance to the nearest.
@@ -135,8 +143,7 @@ class LatentRange:
     @classmethod
     def fit(cls, latents: np.ndarray, labels: np.ndarray, components: int = COMPONENTS) -> "LatentRange":
         x = np.asarray(latents, np.float64)
-        classes = sorted(set(np.asarray(labels).tolist()))
-        means = np.stack([x[labels == k].mean(0) for k in classes])
+        classes, means = class_means(x, labels)
         cov, _ = shrunk_covariance(x - means[np.searchsorted(classes, labels)])
         values, vectors = np.linalg.eigh(cov)
         values, vectors = values[::-1], vectors[:, ::-1]
@@ -300,10 +307,8 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
     labels = [EMOTIONS[k] for k in present]
     emotion = LatentRange.fit(train.emotion, emotions)
     if real is not None:
-        real_emotions = np.asarray(real_emotions)
-        heard = sorted(set(real_emotions.tolist()))
-        emotion.means = np.concatenate([emotion.means, np.stack([real.emotion[real_emotions == k].mean(0)
-                                                                 for k in heard])])
+        heard, real_means = class_means(real.emotion, real_emotions)
+        emotion.means = np.concatenate([emotion.means, real_means])
         labels += [EMOTIONS[k] for k in heard]
     voice = LatentRange.fit(train.style, speakers)
     d_emotion, d_voice = emotion.nearest(held_out.emotion), voice.nearest(held_out.style)
@@ -315,11 +320,8 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
         info["real_windows"] = int(len(real_emotions))
     perception = EmotionPerception(labels, emotion, voice, info)
     if band is not None:
-        band_emotions = np.asarray(band_emotions)
-        heard = sorted(set(band_emotions.tolist()))
+        heard, perception.band_means = class_means(np.asarray(band.emotion, np.float64), band_emotions)
         perception.band_labels = [EMOTIONS[k] for k in heard]
-        perception.band_means = np.stack([np.asarray(band.emotion, np.float64)[band_emotions == k].mean(0)
-                                          for k in heard])
         info["band_windows"] = int(len(band_emotions))
     if held_out_emotions is not None:
         inside = d_emotion <= emotion.threshold
