@@ -165,6 +165,22 @@ def word_readers_text(path: Path) -> str:
             f"emotion in {r['emotions_mean']:.0%} (mean of the seven).")
 
 
+def neutral_reference_text(path: Path) -> str:
+    """What a neutral recording of the same speaker (``neutral_reference.py``) changes, when measured."""
+    if not path.is_file():
+        return ""
+    r = next(iter(json.loads(path.read_text()).values()))
+    readers, voices = r["readers"], r["held_out_voices"]["rows"]
+    changed = [row for name, row in voices.items() if name != "as recorded"]
+    return (f" Given a recording of the same reader speaking without emotion (`generate --neutral-from`, "
+            f"`experiments/neutral_reference.py`, val), the same stretches are heard as neutral in "
+            f"{readers['both']['neutral_share']:.0%} (alone: {readers['alone']['neutral_share']:.0%}) and the "
+            f"emotions given them in {readers['both']['emotions_mean']:.0%} "
+            f"({readers['alone']['emotions_mean']:.0%}); the held-out synthetic voices under the seven changed "
+            f"recordings are heard right in {np.mean([row['both'] for row in changed]):.1%} "
+            f"({np.mean([row['alone'] for row in changed]):.1%}).")
+
+
 def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     bundle, report = Path(bundle), Path(report)
     real = json.loads((report / "real" / "real_speech.json").read_text())
@@ -233,6 +249,8 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                   "most; a window nearer the real voices' mean is animated with the training voices' latent of that "
                   "emotion)")
     readers_text = word_readers_text(report / "word_readers" / "word_readers.json")
+    if readers_text:  # the neutral reference's sentence speaks of the same readers
+        readers_text += neutral_reference_text(report / "neutral_reference" / "neutral_reference.json")
     band_text = ("" if not perception.get("band_means") else
                  " Each emotion has one more mean for the read-out alone: of the training takes heard through a "
                  "simulated telephone band, so that a recording through such a band is compared with training speech "

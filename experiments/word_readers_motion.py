@@ -5,9 +5,11 @@ reading word lists (:data:`emogesture.data.real_speech.WORD_READERS`, never trai
 same way (:func:`emogesture.eval.real_speech.real_speech_report`): the first :data:`SECONDS` of each, read
 without acted emotion, beside the ``split``'s neutral corpus takes, generated as ``generate`` does by default
 (``--emotion auto``) with each sampling seed: what is heard and trusted, a hand in front of the chest and the
-wrists' distance, per reader and pooled, with the real-speech checks' bars.
+wrists' distance, per reader and pooled, with the real-speech checks' bars. With ``--neutral-reference``,
+each reader is heard and generated against the :data:`REFERENCE_SECONDS` that follow the first
+:data:`SECONDS` of the same reader (``generate --neutral-from``; :mod:`emogesture.pipeline.neutral_reference`).
 
-Usage: python experiments/word_readers_motion.py GESTURE_MODEL CACHE OUT_DIR [SPLIT] [SEEDS]
+Usage: python experiments/word_readers_motion.py GESTURE_MODEL CACHE OUT_DIR [SPLIT] [SEEDS] [--neutral-reference]
 """
 
 from __future__ import annotations
@@ -23,25 +25,34 @@ from emogesture.eval.real_speech import real_speech_markdown, real_speech_report
 from emogesture.pipeline.generate import GesturePipeline
 
 SECONDS = 40
+REFERENCE_SECONDS = 20
 
 
-def main(model: str, cache_dir: str, out_dir: str, split: str = "val", seeds: str = "2") -> None:
-    recordings = {name: (load_voice(voice)[: SECONDS * TARGET_SAMPLE_RATE], "neutral")
-                  for name, voice in WORD_READERS.items()}
+def main(model: str, cache_dir: str, out_dir: str, split: str = "val", seeds: str = "2",
+         neutral_reference: bool = False) -> None:
+    waves = {name: load_voice(voice) for name, voice in WORD_READERS.items()}
+    recordings = {name: (wave[: SECONDS * TARGET_SAMPLE_RATE], "neutral") for name, wave in waves.items()}
+    neutral = ({name: wave[SECONDS * TARGET_SAMPLE_RATE:(SECONDS + REFERENCE_SECONDS) * TARGET_SAMPLE_RATE]
+                for name, wave in waves.items()} if neutral_reference else None)
     pipe = GesturePipeline.from_run(model)
     reference = reference_recordings(open_cache(cache_dir), split, {"neutral"})
-    result = real_speech_report(pipe, recordings, reference, list(range(int(seeds))), progress=True)
+    result = real_speech_report(pipe, recordings, reference, list(range(int(seeds))), progress=True,
+                                neutral_references=neutral)
+    against = (f"; each heard and generated against the next {REFERENCE_SECONDS} s of the same reader "
+               "(--neutral-from)" if neutral_reference else "")
     result["header"] = (f"The validation set of real voices (thirteen volunteers reading word lists, the first "
-                        f"{SECONDS} s of each; never trained or calibrated on) against the {split} split's neutral "
-                        f"takes; model {pipe.loaded.path}.")
+                        f"{SECONDS} s of each; never trained or calibrated on{against}) against the {split} split's "
+                        f"neutral takes; model {pipe.loaded.path}.")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "word_readers_motion.json").write_text(json.dumps(result, indent=1) + "\n")
-    (out / "word_readers_motion.md").write_text(real_speech_markdown(result))
+    stem = "word_readers_motion" + ("_neutral_reference" if neutral_reference else "")
+    (out / f"{stem}.json").write_text(json.dumps(result, indent=1) + "\n")
+    (out / f"{stem}.md").write_text(real_speech_markdown(result))
     print(real_speech_markdown(result))
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 4:
+    args = [a for a in sys.argv[1:] if a != "--neutral-reference"]
+    if len(args) < 3:
         sys.exit(__doc__)
-    main(*sys.argv[1:])
+    main(*args, neutral_reference="--neutral-reference" in sys.argv[1:])

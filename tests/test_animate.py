@@ -97,6 +97,8 @@ def test_existing_outputs_are_refused_and_nothing_is_written(pipe, tmp_path, tak
     ({"emotion": "own", "style_from": "b/calm.wav"}, "_style-calm_own", "emotion: own (own)"),
     ({"emotion_from": ANGRY, "emotion_weight": 0.25, "style_from": "calm.wav"}, "_emotion-angry_style-calm",
      "emotion from angry.flac x0.25"),
+    ({"neutral_from": "b/calm.wav"}, "_neutral-calm", "emotion: own (auto) against calm.wav"),
+    ({"emotion": "anger", "neutral_from": "calm.wav"}, "_emotion-anger_neutral-calm", "emotion: anger"),
 ])
 def test_output_names_and_video_label(tmp_path, kwargs, tag, emotion):
     request = AnimationRequest("a/talk.flac", tmp_path, seed=7, samples=2, **kwargs)

@@ -66,7 +66,8 @@ class AppSession:
         self.formats = ("npz", "bvh", "glb", "mp4") + (("fbx",) if _fbx_available() else ())
 
     def run(self, speech: str | None, emotion: str, timeline: str, weight: float, emotion_from: str | None,
-            style_from: str | None, seed: float, samples: float, skeleton: str) -> tuple:
+            style_from: str | None, seed: float, samples: float, skeleton: str,
+            neutral_from: str | None = None) -> tuple:
         """The page's inputs -> (video, 3D view value, perception rows, summary, files). A bad input raises
         :class:`EmogestureError` with the message the page shows."""
         if not speech:
@@ -79,7 +80,8 @@ class AppSession:
             Path(speech), out, emotion=request_emotion,
             emotion_weight=float(weight) if (label_given and not timeline and float(weight) < 1.0) else None,
             emotion_from=Path(emotion_from) if emotion_from and not timeline else None,
-            style_from=Path(style_from) if style_from else None, formats=self.formats, seed=int(seed),
+            style_from=Path(style_from) if style_from else None,
+            neutral_from=Path(neutral_from) if neutral_from else None, formats=self.formats, seed=int(seed),
             samples=int(samples), skeleton=skeleton)
         if request.label is not None and emotion_from:
             raise EmogestureError("choose an emotion label or an emotion recording, not both")
@@ -94,8 +96,9 @@ class AppSession:
         files = [str(p) for sample in result.files for p in sample] + [str(result.perception_path)]
         note = "" if "fbx" in self.formats else " (fbx needs Blender on the server)"
         summaries = [line.replace(str(request.speech), request.speech.name) for line in result.summaries]
-        if request.emotion_from is not None:
-            summaries = [line.replace(str(request.emotion_from), request.emotion_from.name) for line in summaries]
+        for other in (request.emotion_from, request.neutral_from):
+            if other is not None:
+                summaries = [line.replace(str(other), other.name) for line in summaries]
         return (str(video), {"glb": _file_url(glb), "audio": _file_url(listen)}, perception_rows(report),
                 "\n\n".join(summaries) + note, files)
 
@@ -123,6 +126,8 @@ def build_app(session: AppSession):
                     emotion_from = gr.Audio(sources=["upload"], type="filepath", label="emotion from this recording")
                     style_from = gr.Audio(sources=["upload"], type="filepath",
                                           label="speaker style from this recording")
+                    neutral_from = gr.Audio(sources=["upload", "microphone"], type="filepath",
+                                            label="the same speaker without emotion (read the emotion against it)")
                     seed = gr.Number(value=0, precision=0, label="seed")
                     samples = gr.Slider(1, 4, value=1, step=1, label="samples")
                     skeleton = gr.Radio(["smplx", "mixamo"], value="smplx", label="skeleton of bvh, glb, fbx")
@@ -136,7 +141,8 @@ def build_app(session: AppSession):
                 table = gr.Dataframe(headers=["window", "heard", "probability", "trust", "animated"],
                                      label="emotion perceived in each window", elem_id="perception")
                 files = gr.File(file_count="multiple", label="downloads", elem_id="downloads")
-        button.click(run, [speech, emotion, timeline, weight, emotion_from, style_from, seed, samples, skeleton],
+        button.click(run, [speech, emotion, timeline, weight, emotion_from, style_from, seed, samples, skeleton,
+                           neutral_from],
                      [video, viewer, table, summary, files], concurrency_limit=1)
     return page
 

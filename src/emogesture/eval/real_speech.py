@@ -40,9 +40,13 @@ REAL_SPEECH_CONSTANTS = {"heard_share": HEARD_SHARE, "trusted_share": TRUSTED_SH
                          "wrist_distance_tolerance": WRIST_DISTANCE_TOLERANCE}
 
 
-def _perception(pipe: GesturePipeline, wave: np.ndarray, emotion: str, name: str) -> tuple[dict, object]:
+def _perception(pipe: GesturePipeline, wave: np.ndarray, emotion: str, name: str,
+                neutral: np.ndarray | None = None) -> tuple[dict, object]:
     encoded = pipe.encode(wave)
-    heard = pipe.perceive(*encoded, name)
+    reference = None if neutral is None else pipe.neutral_reference(neutral, f"{name}, neutral reference")
+    heard = pipe.perceive(*encoded, name, reference=reference)
+    if reference is not None:  # generated as `generate --neutral-from` does
+        encoded = (reference.relative(encoded[0]), encoded[1])
     trusted = None if heard.trust is None else [bool(t >= 1.0) for t in heard.trust]
     return {"seconds": round(len(wave) / TARGET_SAMPLE_RATE, 2), "windows": len(heard.labels), "heard": heard.labels,
             "heard_counts": dict(Counter(heard.labels)),
@@ -65,9 +69,11 @@ def _pooled(rows: dict[str, dict]) -> dict:
 
 def real_speech_report(pipe: GesturePipeline, recordings: dict[str, tuple[np.ndarray, str]],
                        reference: dict[str, tuple[np.ndarray, str]], seeds: Sequence[int] = (0, 1, 2, 3),
-                       progress: bool = False) -> dict:
+                       progress: bool = False, neutral_references: dict[str, np.ndarray] | None = None) -> dict:
     """Perception and motion of real ``recordings`` (name -> 16-kHz waveform, the emotion it is spoken
-    with) beside ``reference`` recordings (held-out corpus takes, same form), generated with ``seeds``.
+    with) beside ``reference`` recordings (held-out corpus takes, same form), generated with ``seeds``;
+    a recording named in ``neutral_references`` (name -> 16-kHz waveform of the same speaker without
+    emotion) is heard and generated against it, as ``generate --neutral-from`` does.
 
     Returns ``{"real": {name: row}, "reference": {name: row}, "pooled": {"real", "reference"}, "motion":
     {"real", "reference"} (motion_statistics), "checks": {name: {value, bar, pass}}, "seeds", "constants"}``.
@@ -80,7 +86,8 @@ def real_speech_report(pipe: GesturePipeline, recordings: dict[str, tuple[np.nda
     for group, name, (wave, emotion) in tqdm(items, desc="real speech report", unit="recording", disable=not progress):
         if emotion not in EMOTIONS:
             raise ValueError(f"{name}: unknown emotion {emotion!r}")
-        row, encoded = _perception(pipe, wave, emotion, name)
+        row, encoded = _perception(pipe, wave, emotion, name,
+                                   (neutral_references or {}).get(name) if group == "real" else None)
         sequences = _motion(pipe, wave, encoded, seeds)
         own = motion_statistics(sequences)
         out[group][name] = row | {"emotion": emotion, "hand_in_front_share": own["hand_in_front_share"],

@@ -70,6 +70,9 @@ class AnimationRequest:
     emotion_weight: float | None = None
     emotion_from: Path | None = None
     style_from: Path | None = None
+    #: a recording of the same speaker speaking without emotion: the speech's emotion is read against it
+    #: (:mod:`emogesture.pipeline.neutral_reference`)
+    neutral_from: Path | None = None
     formats: tuple[str, ...] = DEFAULT_FORMATS
     seed: int = 0
     samples: int = 1
@@ -90,6 +93,7 @@ class AnimationRequest:
         self.speech, self.out = Path(self.speech), Path(self.out)
         self.emotion_from = None if self.emotion_from is None else Path(self.emotion_from)
         self.style_from = None if self.style_from is None else Path(self.style_from)
+        self.neutral_from = None if self.neutral_from is None else Path(self.neutral_from)
         self.validate()
 
     def validate(self) -> None:
@@ -138,6 +142,8 @@ class AnimationRequest:
             tag += f"_emotion-{self.timeline.tag}"
         if self.style_from:
             tag += f"_style-{self.style_from.stem}"
+        if self.neutral_from:
+            tag += f"_neutral-{self.neutral_from.stem}"
         return tag + ("_own" if self.mode == "own" else "")
 
     def outputs(self) -> list[Path]:
@@ -162,6 +168,8 @@ class AnimationRequest:
                         f"sample {sample}") for t, name in self.timeline.video_labels()]
         emotion = (f"emotion: {self.label}" if self.label else f"emotion from {self.emotion_from.name}"
                    if self.emotion_from else f"emotion: own ({self.mode})")
+        if self.neutral_from and not (self.label or self.emotion_from):
+            emotion += f" against {self.neutral_from.name}"
         if (self.label or self.emotion_from) and self.weight < 1.0:
             emotion += f" x{self.weight:g}"
         return f"{self.speech.name}\n{emotion}  |  {style}\nseed {self.seed}, sample {sample}"
@@ -201,6 +209,7 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     wave = pipe.load_speech(request.speech)
     emotion_wave = pipe.load_speech(request.emotion_from) if request.emotion_from is not None else None
     style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
+    neutral_wave = pipe.load_speech(request.neutral_from) if request.neutral_from is not None else None
     if request.timeline is not None:
         request.timeline.check_duration(len(wave) / TARGET_SAMPLE_RATE, request.speech)
     edit = (EditRequest(emotion_weight=request.weight, emotion_label=request.label,
@@ -222,7 +231,11 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     with tqdm(total=len(window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, settings.hop_seconds)),
               desc="encoding speech", unit="window", disable=not progress, leave=False) as bar:
         encoded = pipe.encode(wave, progress=bar.update)
-    perceived = [pipe.perceive(*encoded, source=str(request.speech))]
+    reference = (None if neutral_wave is None else
+                 pipe.neutral_reference(neutral_wave, str(request.neutral_from), generation=settings))
+    perceived = [pipe.perceive(*encoded, source=str(request.speech), reference=reference)]
+    if reference is not None:  # the gesture model is given the speech read against the speaker's neutral
+        encoded = (reference.relative(encoded[0]), encoded[1])
     if request.timeline is not None:  # the emotion in force in each window, in the report
         perceived[0].in_force = request.timeline.window_report(
             request.timeline.shares(encoded[1], WINDOW_SECONDS, len(wave) / TARGET_SAMPLE_RATE))

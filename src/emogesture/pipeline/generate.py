@@ -34,6 +34,7 @@ from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, settle_quiet_windows, stitch)
+from emogesture.pipeline.neutral_reference import NeutralReference
 from emogesture.pipeline.perception import (PerceivedEmotion, auto_emotion, auto_style, fallback_style_of, perceive,
                                             perception_of)
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
@@ -148,9 +149,22 @@ class GesturePipeline:
             raise EmogestureError(f"unknown edit source {edit!r}; known: emotion, style")
         return ("emotion", "style") if perception_of(self.speech) is not None else ("emotion",)
 
-    def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str) -> PerceivedEmotion:
-        """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""
-        return perceive(enc, starts_s, perception_of(self.speech), source)
+    def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str,
+                 reference: NeutralReference | None = None) -> PerceivedEmotion:
+        """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it;
+        with a neutral ``reference`` of the speaker, read against it as well
+        (:mod:`emogesture.pipeline.neutral_reference`)."""
+        if reference is None:
+            return perceive(enc, starts_s, perception_of(self.speech), source)
+        return perceive(enc, starts_s, perception_of(self.speech), source, relative=reference.relative(enc),
+                        neutral_reference=reference.source)
+
+    def neutral_reference(self, waveform: np.ndarray, source: str,
+                          generation: GenerationConfig | None = None) -> NeutralReference:
+        """The neutral reference (:mod:`emogesture.pipeline.neutral_reference`) of a 16 kHz waveform ``[N]``
+        of the speaker speaking without emotion, heard as the speech is (the same settings)."""
+        enc, _ = self.encode(waveform, parts=("emotion",), generation=generation)
+        return NeutralReference.of(enc, perception_of(self.speech), source)
 
     def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto",
                    starts_s: list[float] | None = None, duration_s: float | None = None) -> list[np.ndarray]:

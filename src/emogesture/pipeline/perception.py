@@ -374,6 +374,8 @@ class PerceivedEmotion:
     noise_suppressed: float = 0.0
     #: seconds of digital silence (exact zeros) heard as the recording's own quiet
     digital_silence_s: float = 0.0
+    #: the recording of the same speaker's neutral voice the windows were read against (None: none)
+    neutral_reference: str | None = None
 
     @property
     def majority(self) -> tuple[str, int]:
@@ -394,6 +396,8 @@ class PerceivedEmotion:
             text += f", heard with its steady background noise taken out ({self.noise_suppressed:.0%})"
         if self.digital_silence_s > 0:
             text += f", its {self.digital_silence_s:.1f} s of digital silence heard as the recording's own quiet"
+        if self.neutral_reference is not None:
+            text += f", read against the speaker's neutral voice in {self.neutral_reference}"
         if self.trust is None:
             return text + "; this speech model has no perception calibration, its emotion latent is used as is"
         low = int((self.trust < 1.0).sum())
@@ -428,39 +432,53 @@ class PerceivedEmotion:
                 row["animated_emotion"] = self.in_force[i]
             rows.append(row)
         label, count = self.majority
-        return json.dumps({"source": self.source, "emotion": label, "windows_agreeing": count,
-                           "confidence": round(self.confidence, 4),
-                           "noise_suppressed": round(float(self.noise_suppressed), 4),
-                           "digital_silence_s": round(float(self.digital_silence_s), 2), "windows": rows},
-                          indent=1) + "\n"
+        head = {"source": self.source, "emotion": label, "windows_agreeing": count,
+                "confidence": round(self.confidence, 4), "noise_suppressed": round(float(self.noise_suppressed), 4),
+                "digital_silence_s": round(float(self.digital_silence_s), 2)}
+        if self.neutral_reference is not None:
+            head["neutral_reference"] = self.neutral_reference
+        return json.dumps({**head, "windows": rows}, indent=1) + "\n"
 
 
-def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | None) -> np.ndarray:
+def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | None,
+                        relative: EncodedWindows | None = None) -> np.ndarray:
     """``[W, 8]`` over EMOTIONS: what the windows of ``enc`` sound like, :meth:`EmotionPerception.read` (the
     head's softmax if uncalibrated), averaged with the same windows heard with the voice moved in pitch
-    where the encoder heard them so (``EncodedWindows.shifted_emotion``)."""
+    where the encoder heard them so (``EncodedWindows.shifted_emotion``), and with ``relative``, the same
+    windows read against a neutral reference (:mod:`emogesture.pipeline.neutral_reference`), heard alike:
+    the mean of both."""
     def read(emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         return np.exp(log_softmax(logits) if perception is None else perception.read(emotion, logits))
 
-    probs = read(enc.emotion, enc.emotion_logits)
-    if enc.shifted_emotion is None:
-        return probs
-    hearings = [probs, *(read(e, lg) for e, lg in zip(enc.shifted_emotion, enc.shifted_logits))]
-    return np.mean(hearings, axis=0)
+    def hearings(e: EncodedWindows) -> np.ndarray:
+        probs = read(e.emotion, e.emotion_logits)
+        if e.shifted_emotion is None:
+            return probs
+        return np.mean([probs, *(read(s, lg) for s, lg in zip(e.shifted_emotion, e.shifted_logits))], axis=0)
+
+    probs = hearings(enc)
+    return probs if relative is None else 0.5 * (probs + hearings(relative))
 
 
 def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerception | None,
-             source: str) -> PerceivedEmotion:
-    probs = heard_probabilities(enc, perception)
+             source: str, relative: EncodedWindows | None = None,
+             neutral_reference: str | None = None) -> PerceivedEmotion:
+    """What is heard in each window of ``enc``; with ``relative`` (the same windows read against the neutral
+    reference recording ``neutral_reference``), heard both ways (:func:`heard_probabilities`), and the
+    distances and trust are those of the windows read against it, which the gesture model is given."""
+    probs = heard_probabilities(enc, perception, relative)
     labels = [EMOTIONS[int(k)] for k in probs.argmax(1)]
+    animated = enc if relative is None else relative
     distance = trust = None
     if perception is not None:
-        distance = np.stack([perception.emotion.nearest(enc.emotion) / perception.emotion.threshold,
-                             perception.voice.nearest(enc.style) / perception.voice.threshold], 1)
-        trust = perception.trust(enc.emotion, enc.style)
+        distance = np.stack([perception.emotion.nearest(animated.emotion) / perception.emotion.threshold,
+                             perception.voice.nearest(animated.style) / perception.voice.threshold], 1)
+        trust = perception.trust(animated.emotion, animated.style)
     return PerceivedEmotion(source, list(starts_s), labels, probs, distance, trust,
-                            real_voices=None if perception is None else perception.real_voices_posterior(enc.emotion),
-                            noise_suppressed=enc.noise_suppressed, digital_silence_s=enc.digital_silence_s)
+                            real_voices=(None if perception is None
+                                         else perception.real_voices_posterior(animated.emotion)),
+                            noise_suppressed=enc.noise_suppressed, digital_silence_s=enc.digital_silence_s,
+                            neutral_reference=neutral_reference)
 
 
 def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:

@@ -1,0 +1,114 @@
+"""A neutral reference of the same speaker (``generate --neutral-from``): the speech read against it."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from emogesture.assets import DEMO_CLIPS
+from emogesture.cli.main import main
+from emogesture.data.beat import EMOTIONS
+from emogesture.errors import EmogestureError
+from emogesture.pipeline.neutral_reference import NeutralReference
+from emogesture.pipeline.perception import fit_perception, heard_probabilities, perceive
+from emogesture.pipeline.speech import EncodedWindows
+
+NEUTRAL = EMOTIONS.index("neutral")
+
+
+def voice(n_per: int, seed: int, offset: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Emotion latents ``[8 n, 48]`` around eight emotion centres, the whole voice moved by ``offset`` along
+    one direction, and their emotions."""
+    rng = np.random.default_rng(seed)
+    centres = np.random.default_rng(7).normal(0, 3, (len(EMOTIONS), 48))
+    direction = np.random.default_rng(8).normal(0, 1, 48)
+    labels = np.repeat(np.arange(len(EMOTIONS)), n_per)
+    return (centres[labels] + rng.normal(0, 1, (len(labels), 48)) + offset * direction).astype(np.float32), labels
+
+
+def windows(emotion: np.ndarray, logits: np.ndarray | None = None) -> EncodedWindows:
+    n = len(emotion)
+    style = np.random.default_rng(n).normal(0, 1, (n, 48)).astype(np.float32)  # one familiar voice
+    return EncodedWindows(np.zeros((n, 4), np.float32), emotion, style,
+                          np.zeros((n, len(EMOTIONS)), np.float32) if logits is None else logits,
+                          np.zeros((n, 2), np.float32))
+
+
+@pytest.fixture(scope="module")
+def perception():
+    train, labels = voice(60, 0)
+    held, _ = voice(20, 1)
+    return fit_perception(windows(train), labels, np.zeros(len(labels), int), windows(held))
+
+
+def test_a_voice_read_against_its_own_neutral_is_heard_as_the_corpus_would_be(perception):
+    speech, labels = voice(10, 2, offset=2.5)  # a voice whose every emotion lies apart from the corpus's
+    calm, _ = voice(10, 3, offset=2.5)
+    reference = NeutralReference.of(windows(calm[labels == NEUTRAL]), perception, "calm.wav")
+    enc = windows(speech)
+    relative = reference.relative(enc)
+    alone = heard_probabilities(enc, perception).argmax(1)
+    against = heard_probabilities(relative, perception).argmax(1)
+    assert np.mean(alone == labels) < 0.6 < 0.9 < np.mean(against == labels)
+    # the reference read against itself lies on the corpus's neutral mean; nothing else moves
+    np.testing.assert_allclose(reference.relative(windows(calm[labels == NEUTRAL])).emotion.mean(0),
+                               perception.neutral(), atol=1e-4)
+    for name in ("content", "style", "emotion_logits", "speaker_logits"):
+        assert getattr(relative, name) is getattr(enc, name)
+    # what is heard is the mean of both hearings; the trust is that of the latents the gesture model gets
+    both = heard_probabilities(enc, perception, relative)
+    np.testing.assert_allclose(both, 0.5 * (heard_probabilities(enc, perception)
+                                            + heard_probabilities(relative, perception)), rtol=1e-6)
+    heard = perceive(enc, [0.0] * len(enc.emotion), perception, "talk.wav", relative, "calm.wav")
+    np.testing.assert_array_equal(heard.trust, perception.trust(relative.emotion, relative.style))
+    assert "read against the speaker's neutral voice in calm.wav" in heard.summary("auto")
+    assert json.loads(heard.to_json())["neutral_reference"] == "calm.wav"
+    assert "neutral_reference" not in json.loads(perceive(enc, [0.0] * len(enc.emotion), perception, "t").to_json())
+
+
+def test_each_hearing_is_read_against_the_reference_heard_the_same_way(perception):
+    calm, labels = voice(5, 4)
+    calm = calm[labels == NEUTRAL]
+    ref = windows(calm)
+    ref.shifted_emotion = np.stack([calm + 1.0, calm - 2.0])
+    ref.shifted_logits = np.zeros((2, len(calm), len(EMOTIONS)), np.float32)
+    reference = NeutralReference.of(ref, perception, "calm.wav")
+    assert reference.shifted_offsets.shape == (2, 48) and reference.windows == len(calm)
+    enc = windows(calm[:2])
+    enc.shifted_emotion = np.stack([calm[:2] + 1.0, calm[:2] - 2.0])
+    enc.shifted_logits = np.zeros((2, 2, len(EMOTIONS)), np.float32)
+    moved = reference.relative(enc)
+    np.testing.assert_allclose(moved.shifted_emotion - moved.emotion[None], 0.0, atol=1e-4)
+    once = NeutralReference.of(windows(calm), perception, "calm.wav")  # heard once: one offset for all
+    np.testing.assert_allclose(once.relative(enc).shifted_emotion - enc.shifted_emotion,
+                               np.broadcast_to(once.offset, (2, 2, 48)), atol=1e-5)
+
+
+def test_a_reference_needs_a_calibrated_perception_and_latents(perception):
+    with pytest.raises(EmogestureError, match=r"^calm\.wav: a neutral reference needs a speech model with a "
+                                              r"perception calibration"):
+        NeutralReference.of(windows(np.zeros((2, 48), np.float32)), None, "calm.wav")
+    with pytest.raises(EmogestureError, match="calm.wav: no emotion latents"):
+        NeutralReference.of(windows(np.zeros((0, 48), np.float32)), perception, "calm.wav")
+
+
+def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsys, one_thread):
+    talk, calm = DEMO_CLIPS / "talk.flac", tmp_path / "calm.wav"
+    wave, rate = sf.read(talk, dtype="float32")
+    sf.write(calm, wave[-10 * rate:], rate)  # its last 10 s, as a recording of the same voice
+    args = ["generate", str(talk), "--format", "npz", "--seam-candidates", "1", "--device", "cpu", "--quiet"]
+    assert main([*args, "-o", str(tmp_path)]) == 0
+    assert main([*args, "-o", str(tmp_path), "--neutral-from", str(calm)]) == 0
+    out = capsys.readouterr().out
+    assert f"read against the speaker's neutral voice in {calm}" in out
+    plain = np.load(tmp_path / "talk_seed0_0.npz")["poses"]
+    against = np.load(tmp_path / "talk_neutral-calm_seed0_0.npz")["poses"]
+    assert plain.shape == against.shape and np.abs(plain - against).max() > 1e-3  # the gesture model hears it
+    report = json.loads((tmp_path / "talk_neutral-calm_seed0_perception.json").read_text())
+    assert report[0]["neutral_reference"] == str(calm)
+    assert main([*args, "-o", str(tmp_path / "x"), "--neutral-from", str(tmp_path / "missing.wav")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "missing.wav" in err[0]
