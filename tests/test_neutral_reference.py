@@ -112,3 +112,19 @@ def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsy
     assert main([*args, "-o", str(tmp_path / "x"), "--neutral-from", str(tmp_path / "missing.wav")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "missing.wav" in err[0]
+
+
+def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
+    from emogesture.app.page import AppSession
+    from emogesture.pipeline.generate import GesturePipeline
+
+    talk, calm = DEMO_CLIPS / "talk.flac", tmp_path / "calm.wav"
+    wave, rate = sf.read(talk, dtype="float32")
+    sf.write(calm, wave[-10 * rate:], rate)
+    (tmp_path / "work").mkdir()
+    session = AppSession(GesturePipeline.from_run(None, device="cpu"), tmp_path / "work")
+    session.formats = ("npz", "glb", "mp4")
+    video, _, rows, summary, files = session.run(str(talk), "auto", "", 1.0, None, None, 0, 1, "smplx",
+                                                 neutral_from=str(calm))
+    assert "_neutral-calm_" in video and rows
+    assert "read against the speaker's neutral voice in calm.wav" in summary and str(tmp_path) not in summary
