@@ -128,3 +128,32 @@ def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
                                                  neutral_from=str(calm))
     assert "_neutral-calm_" in video and rows
     assert "read against the speaker's neutral voice in calm.wav" in summary and str(tmp_path) not in summary
+
+
+def test_a_stream_reads_the_speech_against_the_reference_from_its_next_update(one_thread):
+    from dataclasses import replace
+
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.pipeline.stream import GestureStream
+
+    pipe = GesturePipeline.from_run(None, device="cpu")
+    wave = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")[0]
+    reference = pipe.neutral_reference(wave[-10 * 16000:], "calm")
+    still = replace(reference, offset=np.zeros_like(reference.offset))  # a reference that moves nothing
+
+    def frames(ref, switch_at: int | None = None) -> np.ndarray:
+        stream = GestureStream(pipe, neutral_reference=None if switch_at is not None else ref)
+        out = []
+        for k, start in enumerate(range(0, 3 * 16000, 8000)):
+            if k == switch_at:
+                stream.set_neutral_reference(ref)
+            out += stream.push(wave[start:start + 8000])
+        return np.concatenate([f.sequence.poses for f in out])
+
+    plain = frames(None)
+    np.testing.assert_allclose(frames(still), plain, atol=1e-6)
+    against = frames(reference)
+    assert against.shape == plain.shape and np.abs(against - plain).mean() > 1e-3
+    later = frames(reference, switch_at=4)  # set after 2 s: the frames before are the plain stream's
+    np.testing.assert_allclose(later[:60], plain[:60], atol=1e-6)
+    assert np.abs(later[60:] - plain[60:]).mean() > 1e-3

@@ -9,7 +9,12 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
 2. Then binary messages: little-endian 16-bit mono PCM at that rate, in chunks of any size.
 3. At any time, text messages ``{"emotion": "anger", "emotion_weight": 0.8}`` change the emotion from the
    next update on (about every 0.25 s of audio); ``{"end": true}`` flushes the last frames, the server sends
-   ``{"done": true, "total_frames": N}`` and closes.
+   ``{"done": true, "total_frames": N}`` and closes. ``{"neutral": "start"}`` ... ``{"neutral": "stop"}``:
+   the audio between the two (animated as usual) is the speaker's neutral voice, speaking without emotion
+   (at least 3 s; the first 60 s are kept); from the next update on, the speech's emotion is read against it
+   (:mod:`emogesture.pipeline.neutral_reference`, as ``generate --neutral-from``), and the server answers
+   ``{"neutral_reference": {"seconds": s, "windows": n}}``; ``{"neutral": "clear"}`` goes back to the speech
+   alone (answer ``{"neutral_reference": null}``).
 4. The server sends ``{"frames": [...], "audio_s": seconds received}`` as soon as frames are decided, in
    order, one frame per 1/30 s of audio: ``{"frame": i, "time": i / 30, "poses": [[x, y, z] x 55]
    (axis-angle, SMPL-X order), "trans": [x, y, z]}``; with ``"skeleton": "mixamo"``,
@@ -39,6 +44,7 @@ import numpy as np
 import torch
 
 from emogesture.assets import ASSETS
+from emogesture.audio import TARGET_SAMPLE_RATE, resample
 from emogesture.errors import EmogestureError
 from emogesture.export.gltf import glb_bytes, sequence_to_gltf
 from emogesture.motion.rigs import rig_named
@@ -51,6 +57,7 @@ from emogesture.types import SMPLXSequence
 PAGE = Path(__file__).with_name("page.html")
 RATES = (8000, 48000)
 FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from"}
+NEUTRAL_SECONDS = (3.0, 60.0)  # the shortest neutral recording taken, and the most of it kept
 
 
 def speaker_styles(pipe: GesturePipeline) -> dict[int, np.ndarray]:
@@ -141,7 +148,7 @@ class LiveServer:
         """Read the client's messages as they come (so the connection never stalls), and turn the audio that
         waits into frames whenever the worker is free: one update for all of it when the stream fell behind."""
         loop = asyncio.get_running_loop()
-        audio, state = bytearray(), {"end": False, "closed": False}
+        audio, state = bytearray(), {"end": False, "closed": False, "neutral": None}
         wake = asyncio.Event()
 
         async def read() -> None:
@@ -149,9 +156,14 @@ class LiveServer:
                 async for message in connection:
                     if isinstance(message, bytes):
                         audio.extend(message)
+                        if state["neutral"] is not None and len(state["neutral"]) < 2 * rate * NEUTRAL_SECONDS[1]:
+                            state["neutral"].extend(message)
                     else:
                         try:
-                            state["end"] = self._control(stream, message)
+                            action = self._control(stream, message)
+                            state["end"] = action == "end"
+                            if action.startswith("neutral"):
+                                await self._neutral(connection, stream, action, state, rate)
                         except EmogestureError as e:
                             await connection.send(json.dumps({"error": str(e)}))
                     wake.set()
@@ -189,10 +201,38 @@ class LiveServer:
         finally:
             reader.cancel()
 
+    async def _neutral(self, connection, stream: GestureStream, action: str, state: dict, rate: int) -> None:
+        """Start, stop or clear the speaker's neutral recording (module docstring, point 3)."""
+        if action == "neutral start":
+            if state["neutral"] is not None:
+                raise EmogestureError("a neutral recording is already being taken; send {\"neutral\": \"stop\"}")
+            state["neutral"] = bytearray()
+            return
+        if action == "neutral clear":
+            state["neutral"] = None
+            stream.set_neutral_reference(None)
+            await connection.send(json.dumps({"neutral_reference": None}))
+            return
+        if state["neutral"] is None:
+            raise EmogestureError("no neutral recording is being taken; send {\"neutral\": \"start\"} first")
+        pcm, state["neutral"] = bytes(state["neutral"]), None
+        seconds = len(pcm) // 2 / rate
+        if seconds < NEUTRAL_SECONDS[0]:
+            raise EmogestureError(f"the neutral recording is {seconds:.1f} s long; it needs at least "
+                                  f"{NEUTRAL_SECONDS[0]:g} s of speech")
+        wave = resample(np.frombuffer(pcm[: len(pcm) // 2 * 2], "<i2").astype(np.float32) / 32768.0, rate,
+                        TARGET_SAMPLE_RATE)
+        reference = await asyncio.get_running_loop().run_in_executor(
+            self.worker, partial(self.pipe.neutral_reference, wave, "the stream's neutral recording"))
+        stream.set_neutral_reference(reference)
+        await connection.send(json.dumps({"neutral_reference": {"seconds": round(seconds, 3),
+                                                                "windows": reference.windows}}))
+
     @staticmethod
-    def _control(stream: GestureStream, text: str) -> bool:
-        """A text message after the first: an emotion change (False) or the end (True); anything else is a
-        one-line :class:`EmogestureError` the server answers, the stream going on."""
+    def _control(stream: GestureStream, text: str) -> str:
+        """A text message after the first -> ``"emotion"`` (the emotion changed), ``"end"``, or ``"neutral
+        start"``, ``"neutral stop"``, ``"neutral clear"``; anything else is a one-line :class:`EmogestureError`
+        the server answers, the stream going on."""
         try:
             message = json.loads(text)
         except ValueError:
@@ -200,11 +240,15 @@ class LiveServer:
         if not isinstance(message, dict):
             raise EmogestureError("expected a JSON object")
         if message.get("end"):
-            return True
+            return "end"
+        if set(message) == {"neutral"}:
+            if message["neutral"] not in ("start", "stop", "clear"):
+                raise EmogestureError(f"neutral {message['neutral']!r}: start, stop or clear")
+            return f"neutral {message['neutral']}"
         if set(message) <= {"emotion", "emotion_weight"} and message:
             stream.set_emotion(str(message.get("emotion", "auto")), message.get("emotion_weight"))
-            return False
-        raise EmogestureError(f"unknown message {sorted(message)}; send emotion, emotion_weight or end")
+            return "emotion"
+        raise EmogestureError(f"unknown message {sorted(message)}; send emotion, emotion_weight, neutral or end")
 
 
 def default_workers() -> int:

@@ -40,6 +40,7 @@ from emogesture.audio import TARGET_SAMPLE_RATE, resample, window_activity
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.animate import emotion_request
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline
+from emogesture.pipeline.neutral_reference import NeutralReference
 from emogesture.pipeline.postprocess import residual_weights, settle_quiet_windows
 from emogesture.types import SMPLXSequence
 
@@ -78,10 +79,12 @@ class GestureStream:
     """One stream of speech into frames (module docstring). ``emotion``: ``auto``, ``own`` or a label, with
     ``emotion_weight`` for a label (None = 1); ``style``: a style latent ``[D]`` to gesture in (another
     voice's, e.g. a training speaker's mean) instead of the speech's own; ``seed``: every draw of the stream
-    derives from it."""
+    derives from it; ``neutral_reference``: the speaker's neutral voice to read the speech's emotion against
+    (:mod:`emogesture.pipeline.neutral_reference`; :meth:`set_neutral_reference` changes it)."""
 
     def __init__(self, pipe: GesturePipeline, *, emotion: str = "auto", emotion_weight: float | None = None,
-                 style: np.ndarray | None = None, seed: int = 0, settings: StreamSettings | None = None) -> None:
+                 style: np.ndarray | None = None, seed: int = 0, settings: StreamSettings | None = None,
+                 neutral_reference: NeutralReference | None = None) -> None:
         self.pipe, self.seed = pipe, int(seed)
         self.settings = settings or StreamSettings()
         self.fps = pipe.fps
@@ -94,6 +97,7 @@ class GestureStream:
         self.draws = 0  # noise draws so far (a new one at each update over sound)
         self.last: np.ndarray | None = None  # the last sent frame's features [D]
         self.style = None if style is None else np.asarray(style, np.float32).reshape(1, -1)
+        self.neutral_reference = neutral_reference
         self.set_emotion(emotion, emotion_weight)
 
     @property
@@ -110,6 +114,11 @@ class GestureStream:
         self.mode = mode
         self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight),
                                 style_from=self.style) if label is not None or self.style is not None else None
+
+    def set_neutral_reference(self, reference: NeutralReference | None) -> None:
+        """Read the speech's emotion against the speaker's neutral voice from the next update on (None: the
+        speech alone)."""
+        self.neutral_reference = reference
 
     def push(self, samples: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE,
              catch_up: bool = False) -> list[StreamFrames]:
@@ -155,6 +164,8 @@ class GestureStream:
         if new <= 0:
             return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
         enc, _ = self.pipe.encode(self.audio, perceived=False)  # a stream reports no perception
+        if self.neutral_reference is not None:
+            enc = self.neutral_reference.relative(enc)
         conds = self.pipe.conditions(enc, self.edit, self.mode)
         k = self.settings.candidates
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
