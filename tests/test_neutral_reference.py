@@ -67,6 +67,13 @@ def test_a_voice_read_against_its_own_neutral_is_heard_as_the_corpus_would_be(pe
     assert "read against the speaker's neutral voice in calm.wav" in heard.summary("auto")
     assert json.loads(heard.to_json())["neutral_reference"] == "calm.wav"
     assert "neutral_reference" not in json.loads(perceive(enc, [0.0] * len(enc.emotion), perception, "t").to_json())
+    # a recording mostly beyond the range, read alone, is pointed to a neutral reference; one within it is not
+    far = windows(speech + 50.0)
+    assert "--neutral-from" in perceive(far, [0.0] * len(speech), perception, "far.wav").summary("auto")
+    near, _ = voice(10, 5)
+    assert "--neutral-from" not in perceive(windows(near), [0.0] * len(near), perception, "n.wav").summary("auto")
+    assert "--neutral-from" not in perceive(far, [0.0] * len(speech), perception, "far.wav", reference.relative(far),
+                                            "calm.wav").summary("auto")
 
 
 def test_each_hearing_is_read_against_the_reference_heard_the_same_way(perception):
