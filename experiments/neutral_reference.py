@@ -13,7 +13,8 @@ reference's offset), and both (the mean of the two hearings: what ``--neutral-fr
   :func:`emogesture.audio.wave_augment.recording_changes` (the levels left out): the reference is each
   speaker's first neutral take (by name) under the same change, and is itself not scored.
 
-Every window is heard as ``generate`` hears it (the voice also moved ``perception_semitones`` up and down).
+Every window is heard as ``generate`` hears it (the voice also moved ``perception_semitones`` up and down);
+the held-out voices' takes are cut at an 8-s hop, as ``perception_shift.py`` cuts them.
 
 Usage: python experiments/neutral_reference.py OUT_DIR CACHE NAME=SPEECH_MODEL [NAME=SPEECH_MODEL ...]
 """

@@ -126,7 +126,7 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
     from websockets.sync.client import connect
 
     url, clip, proc = server
-    wave = sf.read(clip, dtype="float32")[0]
+    wave = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")[0]  # 20.5 s
 
     def pcm(start: float, end: float) -> bytes:
         return (wave[int(start * 16000):int(end * 16000)] * 32767).astype("<i2").tobytes()
@@ -138,13 +138,13 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
             ws.recv()
             if neutral:
                 ws.send(json.dumps({"neutral": "start"}))
-            ws.send(pcm(0.0, 4.0))
+            ws.send(pcm(0.0, 10.5))
             if neutral:  # the rest is sent once the server has the reference
                 ws.send(json.dumps({"neutral": "stop"}))
                 while "neutral_reference" not in (reply := json.loads(ws.recv())):
                     replies.append(reply)
                 reference = reply["neutral_reference"]
-            ws.send(pcm(4.0, 7.3))
+            ws.send(pcm(10.5, 20.5))
             ws.send(json.dumps({"end": True}))
             while not (reply := json.loads(ws.recv())).get("done"):
                 replies.append(reply)
@@ -153,16 +153,18 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
 
     plain, _ = stream(False)
     against, reference = stream(True)
-    assert reference["seconds"] == pytest.approx(4.0) and reference["windows"] >= 1
-    assert plain.shape == against.shape == (219, 55, 3)  # what the reference changes: test_neutral_reference.py
+    assert reference["seconds"] == pytest.approx(10.5) and reference["windows"] >= 1
+    assert plain.shape == (614, 55, 3), plain.shape
+    assert against.shape == (614, 55, 3), against.shape  # what the reference changes: test_neutral_reference.py
 
     with connect(url) as ws:  # a stop without a start, a recording too short, a bad value, a clear
         ws.send(json.dumps({"sample_rate": 16000}))
         ws.recv()
         errors = []
         ws.send(json.dumps({"neutral": "stop"}))
+        ws.send(pcm(0.0, 1.0)[:1])  # half a sample before the start: the recording keeps whole samples
         ws.send(json.dumps({"neutral": "start"}))
-        ws.send(pcm(0.0, 1.0))
+        ws.send(pcm(0.0, 1.0)[1:])
         ws.send(json.dumps({"neutral": "stop"}))
         ws.send(json.dumps({"neutral": "later"}))
         ws.send(json.dumps({"neutral": "clear"}))
@@ -171,8 +173,9 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
         while not (reply := json.loads(ws.recv())).get("done"):
             errors += [reply["error"]] if "error" in reply else []
             cleared |= "neutral_reference" in reply and reply["neutral_reference"] is None
-    assert len(errors) == 3 and cleared
-    assert "no neutral recording" in errors[0] and "1.0 s long" in errors[1] and "start, stop or clear" in errors[2]
+    assert len(errors) == 3 and cleared and all("\n" not in e for e in errors)
+    assert "no neutral recording" in errors[0] and "start, stop or clear" in errors[1]  # at once
+    assert "the neutral recording: audio is too short: 1.00 s, at least 10 s" in errors[2]  # once it is heard
     assert proc.poll() is None
 
 
@@ -247,8 +250,8 @@ def test_the_page_streams_a_fake_microphone_and_the_mannequin_moves(server, tmp_
         assert 0.01 < drawn < 0.6
         latency = float(driver.find_element("id", "latency").text)
         assert 0.0 < latency < 5.0
-        driver.find_element("id", "neutral").click()  # a few seconds of the speaker's neutral voice
-        time.sleep(3.5)
+        driver.find_element("id", "neutral").click()  # ten seconds of the speaker's neutral voice
+        time.sleep(10.5)
         driver.find_element("id", "neutral").click()
         WebDriverWait(driver, 60).until(lambda d: "against your neutral voice" in d.find_element(
             "id", "neutral-status").text)

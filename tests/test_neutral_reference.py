@@ -67,13 +67,11 @@ def test_a_voice_read_against_its_own_neutral_is_heard_as_the_corpus_would_be(pe
     assert "read against the speaker's neutral voice in calm.wav" in heard.summary("auto")
     assert json.loads(heard.to_json())["neutral_reference"] == "calm.wav"
     assert "neutral_reference" not in json.loads(perceive(enc, [0.0] * len(enc.emotion), perception, "t").to_json())
-    # a recording mostly beyond the range, read alone, is pointed to a neutral reference; one within it is not
+    # a recording mostly beyond the range (generate then points to --neutral-from); one within it is not
     far = windows(speech + 50.0)
-    assert "--neutral-from" in perceive(far, [0.0] * len(speech), perception, "far.wav").summary("auto")
+    assert perceive(far, [0.0] * len(speech), perception, "far.wav").unlike_training_voices
     near, _ = voice(10, 5)
-    assert "--neutral-from" not in perceive(windows(near), [0.0] * len(near), perception, "n.wav").summary("auto")
-    assert "--neutral-from" not in perceive(far, [0.0] * len(speech), perception, "far.wav", reference.relative(far),
-                                            "calm.wav").summary("auto")
+    assert not perceive(windows(near), [0.0] * len(near), perception, "n.wav").unlike_training_voices
 
 
 def test_each_hearing_is_read_against_the_reference_heard_the_same_way(perception):
@@ -116,9 +114,31 @@ def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsy
     assert plain.shape == against.shape and np.abs(plain - against).max() > 1e-3  # the gesture model hears it
     report = json.loads((tmp_path / "talk_neutral-calm_seed0_perception.json").read_text())
     assert report[0]["neutral_reference"] == str(calm)
-    assert main([*args, "-o", str(tmp_path / "x"), "--neutral-from", str(tmp_path / "missing.wav")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "missing.wav" in err[0]
+    sf.write(tmp_path / "short.wav", wave[:3 * rate], rate)
+    sf.write(tmp_path / "silent.wav", np.zeros(12 * rate, np.float32), rate)
+    for name, problem in (("missing.wav", "missing.wav"), ("short.wav", "too short: 3.00 s, at least 10 s"),
+                          ("silent.wav", "audio is silent")):
+        assert main([*args, "-o", str(tmp_path / "x"), "--neutral-from", str(tmp_path / name)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and name in err[0] and problem in err[0], err
+    assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())  # nothing written
+
+
+def test_generate_suggests_a_reference_only_for_its_own_emotion_of_an_unfamiliar_voice(tmp_path, monkeypatch,
+                                                                                        one_thread):
+    from emogesture.pipeline.animate import NEUTRAL_HINT, AnimationRequest, animate
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.pipeline.perception import PerceivedEmotion
+
+    pipe = GesturePipeline.from_run(None, device="cpu")
+    talk = DEMO_CLIPS / "talk.flac"
+    plain = animate(pipe, AnimationRequest(talk, tmp_path / "a", formats="npz", seam_candidates=1))
+    assert not any(NEUTRAL_HINT in line for line in plain.summaries)  # the demo voice is a familiar one
+    monkeypatch.setattr(PerceivedEmotion, "unlike_training_voices", property(lambda self: True))
+    unfamiliar = animate(pipe, AnimationRequest(talk, tmp_path / "b", formats="npz", seam_candidates=1))
+    assert unfamiliar.summaries[0].endswith(NEUTRAL_HINT)
+    label = animate(pipe, AnimationRequest(talk, tmp_path / "c", emotion="anger", formats="npz", seam_candidates=1))
+    assert not any(NEUTRAL_HINT in line for line in label.summaries)
 
 
 def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):

@@ -58,6 +58,13 @@ def test_one_frame_per_thirtieth_of_a_second_whatever_the_chunks(pipe, talk):
     assert abs(len(poses) - round(7.37 * 30)) <= 1
 
 
+def test_a_stream_that_fell_far_behind_still_sends_every_frame(pipe, talk):
+    s = GestureStream(pipe)
+    out = s.push(talk, catch_up=True) + s.end()  # 20.5 s at once: more than one window to catch up on
+    assert sum(len(f) for f in out) == round(len(talk) / 16000 * 30) and len(out) >= 3
+    assert all(a.start + len(a) == b.start for a, b in zip(out, out[1:]))
+
+
 def test_joins_are_no_rougher_than_offline_generation(pipe, talk):
     poses, trans, starts = stream(pipe, talk, [1600] * (len(talk) // 1600))  # 100-ms chunks
     offline = pipe.generate(talk)[0]

@@ -99,6 +99,8 @@ class AppSession:
         for other in (request.emotion_from, request.neutral_from):
             if other is not None:
                 summaries = [line.replace(str(other), other.name) for line in summaries]
+        summaries = [line.replace("(--neutral-from)", "(\"the same speaker without emotion\", under \"from other "
+                                  "recordings\")") for line in summaries]
         return (str(video), {"glb": _file_url(glb), "audio": _file_url(listen)}, perception_rows(report),
                 "\n\n".join(summaries) + note, files)
 

@@ -11,7 +11,7 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
    next update on (about every 0.25 s of audio); ``{"end": true}`` flushes the last frames, the server sends
    ``{"done": true, "total_frames": N}`` and closes. ``{"neutral": "start"}`` ... ``{"neutral": "stop"}``:
    the audio between the two (animated as usual) is the speaker's neutral voice, speaking without emotion
-   (at least 3 s; the first 60 s are kept); from the next update on, the speech's emotion is read against it
+   (at least 10 s; the first 60 s are kept); from the next update after the reply on, the speech's emotion is read against it
    (:mod:`emogesture.pipeline.neutral_reference`, as ``generate --neutral-from``), and the server answers
    ``{"neutral_reference": {"seconds": s, "windows": n}}``; ``{"neutral": "clear"}`` goes back to the speech
    alone (answer ``{"neutral_reference": null}``).
@@ -57,7 +57,7 @@ from emogesture.types import SMPLXSequence
 PAGE = Path(__file__).with_name("page.html")
 RATES = (8000, 48000)
 FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from"}
-NEUTRAL_SECONDS = (3.0, 60.0)  # the shortest neutral recording taken, and the most of it kept
+NEUTRAL_SECONDS = 60.0  # the most of a neutral recording kept (the least: neutral_reference.MIN_SECONDS)
 
 
 def speaker_styles(pipe: GesturePipeline) -> dict[int, np.ndarray]:
@@ -148,7 +148,7 @@ class LiveServer:
         """Read the client's messages as they come (so the connection never stalls), and turn the audio that
         waits into frames whenever the worker is free: one update for all of it when the stream fell behind."""
         loop = asyncio.get_running_loop()
-        audio, state = bytearray(), {"end": False, "closed": False, "neutral": None}
+        audio, state = bytearray(), {"end": False, "closed": False, "neutral": None, "tasks": set()}
         wake = asyncio.Event()
 
         async def read() -> None:
@@ -156,14 +156,14 @@ class LiveServer:
                 async for message in connection:
                     if isinstance(message, bytes):
                         audio.extend(message)
-                        if state["neutral"] is not None and len(state["neutral"]) < 2 * rate * NEUTRAL_SECONDS[1]:
+                        if state["neutral"] is not None and len(state["neutral"]) < 2 * rate * NEUTRAL_SECONDS:
                             state["neutral"].extend(message)
                     else:
                         try:
                             action = self._control(stream, message)
                             state["end"] = action == "end"
                             if action.startswith("neutral"):
-                                await self._neutral(connection, stream, action, state, rate)
+                                await self._neutral(connection, stream, action, state, rate, len(audio) % 2)
                         except EmogestureError as e:
                             await connection.send(json.dumps({"error": str(e)}))
                     wake.set()
@@ -201,12 +201,15 @@ class LiveServer:
         finally:
             reader.cancel()
 
-    async def _neutral(self, connection, stream: GestureStream, action: str, state: dict, rate: int) -> None:
-        """Start, stop or clear the speaker's neutral recording (module docstring, point 3)."""
+    async def _neutral(self, connection, stream: GestureStream, action: str, state: dict, rate: int,
+                       odd: int) -> None:
+        """Start, stop or clear the speaker's neutral recording (module docstring, point 3); ``odd``: 1 when
+        the audio received so far ends half-way through a sample. The reference is made by a worker while
+        the connection's messages go on being read."""
         if action == "neutral start":
             if state["neutral"] is not None:
                 raise EmogestureError("a neutral recording is already being taken; send {\"neutral\": \"stop\"}")
-            state["neutral"] = bytearray()
+            state["neutral"], state["neutral_skip"] = bytearray(), odd  # whole samples only
             return
         if action == "neutral clear":
             state["neutral"] = None
@@ -215,18 +218,30 @@ class LiveServer:
             return
         if state["neutral"] is None:
             raise EmogestureError("no neutral recording is being taken; send {\"neutral\": \"start\"} first")
-        pcm, state["neutral"] = bytes(state["neutral"]), None
-        seconds = len(pcm) // 2 / rate
-        if seconds < NEUTRAL_SECONDS[0]:
-            raise EmogestureError(f"the neutral recording is {seconds:.1f} s long; it needs at least "
-                                  f"{NEUTRAL_SECONDS[0]:g} s of speech")
-        wave = resample(np.frombuffer(pcm[: len(pcm) // 2 * 2], "<i2").astype(np.float32) / 32768.0, rate,
-                        TARGET_SAMPLE_RATE)
-        reference = await asyncio.get_running_loop().run_in_executor(
-            self.worker, partial(self.pipe.neutral_reference, wave, "the stream's neutral recording"))
-        stream.set_neutral_reference(reference)
-        await connection.send(json.dumps({"neutral_reference": {"seconds": round(seconds, 3),
-                                                                "windows": reference.windows}}))
+        pcm, state["neutral"] = bytes(state["neutral"][state["neutral_skip"]:]), None
+        pcm = pcm[: len(pcm) // 2 * 2]
+        wave = resample(np.frombuffer(pcm, "<i2").astype(np.float32) / 32768.0, rate, TARGET_SAMPLE_RATE)
+        task = asyncio.create_task(self._take_reference(connection, stream, wave, len(pcm) // 2 / rate))
+        state["tasks"].add(task)
+        task.add_done_callback(state["tasks"].discard)
+
+    async def _take_reference(self, connection, stream: GestureStream, wave: np.ndarray, seconds: float) -> None:
+        """Make the neutral reference of ``wave`` (16 kHz) in a worker, set it and tell the client; a problem
+        is a one-line error to the client, the stream going on."""
+        try:
+            reference = await asyncio.get_running_loop().run_in_executor(self.worker, partial(
+                self.pipe.neutral_reference, wave, "the neutral recording", perceived=False))
+        except EmogestureError as e:
+            message = {"error": str(e)}
+        except Exception as e:  # noqa: BLE001 - a client's bad audio must not end the stream
+            message = {"error": f"the neutral recording could not be heard: {type(e).__name__}: {e}"[:300]}
+        else:
+            stream.set_neutral_reference(reference)
+            message = {"neutral_reference": {"seconds": round(seconds, 3), "windows": reference.windows}}
+        try:
+            await connection.send(json.dumps(message))
+        except Exception:  # noqa: BLE001 - the client left
+            pass
 
     @staticmethod
     def _control(stream: GestureStream, text: str) -> str:

@@ -49,6 +49,11 @@ def emotion_request(text: str | None) -> tuple[str, str | None]:
     return "auto", value
 
 
+#: added to the speech's summary when its own emotion, read alone, comes from a voice mostly unlike the
+#: training voices
+NEUTRAL_HINT = ("; heard alone, a real person's even voice can sound emotional to this model: a calm recording "
+                "of the same speaker (--neutral-from) reads its emotion against their own voice")
+
 @dataclass
 class AnimationRequest:
     """What to animate and where to write it; checked when made (:meth:`validate`).
@@ -132,7 +137,8 @@ class AnimationRequest:
 
     @property
     def tag(self) -> str:
-        """The output names' edit part: ``_emotion-<stem>`` / ``_emotion-<label>``, ``_style-<stem>``, ``_own``."""
+        """The output names' edit part: ``_emotion-<stem>`` / ``_emotion-<label>``, ``_style-<stem>``,
+        ``_neutral-<stem>``, ``_own``."""
         tag = ""
         if self.emotion_from:
             tag += f"_emotion-{self.emotion_from.stem}"
@@ -142,7 +148,7 @@ class AnimationRequest:
             tag += f"_emotion-{self.timeline.tag}"
         if self.style_from:
             tag += f"_style-{self.style_from.stem}"
-        if self.neutral_from:
+        if self.neutral_from:  # after the edits, before _own
             tag += f"_neutral-{self.neutral_from.stem}"
         return tag + ("_own" if self.mode == "own" else "")
 
@@ -168,10 +174,10 @@ class AnimationRequest:
                         f"sample {sample}") for t, name in self.timeline.video_labels()]
         emotion = (f"emotion: {self.label}" if self.label else f"emotion from {self.emotion_from.name}"
                    if self.emotion_from else f"emotion: own ({self.mode})")
-        if self.neutral_from and not (self.label or self.emotion_from):
-            emotion += f" against {self.neutral_from.name}"
         if (self.label or self.emotion_from) and self.weight < 1.0:
             emotion += f" x{self.weight:g}"
+        if self.neutral_from and (not (self.label or self.emotion_from) or self.weight < 1.0):
+            emotion += f" against {self.neutral_from.name}"  # the speech's own emotion is read against it
         return f"{self.speech.name}\n{emotion}  |  {style}\nseed {self.seed}, sample {sample}"
 
 
@@ -209,7 +215,7 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     wave = pipe.load_speech(request.speech)
     emotion_wave = pipe.load_speech(request.emotion_from) if request.emotion_from is not None else None
     style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
-    neutral_wave = pipe.load_speech(request.neutral_from) if request.neutral_from is not None else None
+    neutral_wave = pipe.load_neutral_reference(request.neutral_from) if request.neutral_from is not None else None
     if request.timeline is not None:
         request.timeline.check_duration(len(wave) / TARGET_SAMPLE_RATE, request.speech)
     edit = (EditRequest(emotion_weight=request.weight, emotion_label=request.label,
@@ -247,6 +253,9 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     if edit is not None and style_wave is not None:
         edit.style_from = pipe.encode(style_wave, parts=pipe.edit_source_parts("style"))[0].style
     summaries = [p.summary(request.mode) for p in perceived]
+    own = request.label is None and request.emotion_from is None and request.timeline is None
+    if reference is None and own and perceived[0].unlike_training_voices:  # its own emotion, read alone
+        summaries[0] += NEUTRAL_HINT
     for line in summaries:
         if report is not None:
             report(line)

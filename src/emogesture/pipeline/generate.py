@@ -34,7 +34,7 @@ from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, settle_quiet_windows, stitch)
-from emogesture.pipeline.neutral_reference import NeutralReference
+from emogesture.pipeline.neutral_reference import NeutralReference, check_reference
 from emogesture.pipeline.perception import (PerceivedEmotion, auto_emotion, auto_style, fallback_style_of, perceive,
                                             perception_of)
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
@@ -159,11 +159,20 @@ class GesturePipeline:
         return perceive(enc, starts_s, perception_of(self.speech), source, relative=reference.relative(enc),
                         neutral_reference=reference.source)
 
-    def neutral_reference(self, waveform: np.ndarray, source: str,
-                          generation: GenerationConfig | None = None) -> NeutralReference:
+    def load_neutral_reference(self, path: str | PathLike[str]) -> np.ndarray:
+        """A recording of the speaker speaking without emotion -> 16 kHz waveform ``[N]``; a one-line error
+        for one that cannot be a neutral reference (too short, silent; :func:`check_reference`)."""
+        wave, _ = load_audio(path)
+        check_reference(wave, str(path))
+        return wave
+
+    def neutral_reference(self, waveform: np.ndarray, source: str, generation: GenerationConfig | None = None,
+                          perceived: bool = True) -> NeutralReference:
         """The neutral reference (:mod:`emogesture.pipeline.neutral_reference`) of a 16 kHz waveform ``[N]``
-        of the speaker speaking without emotion, heard as the speech is (the same settings)."""
-        enc, _ = self.encode(waveform, parts=("emotion",), generation=generation)
+        of the speaker speaking without emotion, heard as the speech is (the same settings; ``perceived``
+        False: heard once, for speech that is itself heard once, as a stream's)."""
+        check_reference(waveform, source)
+        enc, _ = self.encode(waveform, parts=("emotion",), generation=generation, perceived=perceived)
         return NeutralReference.of(enc, perception_of(self.speech), source)
 
     def conditions(self, enc: EncodedWindows, edit: EditRequest | None, emotion_mode: str = "auto",

@@ -21,8 +21,13 @@ real voice moves its latent less than it moves a synthetic voice's, so moved alo
 windows given happiness or surprise are heard as neutral. The mean of the two hears a real reader's even
 reading as neutral about ten times as often as the recording alone and the emotions given to it as often as
 before, and the held-out synthetic voices under changed recordings better in every condition
-(`experiments/neutral_reference.py`, val). The content and style latents and the timing are the speech's
-own.
+(`experiments/neutral_reference.py`, val). The content and style latents, the timing and the classifier
+head's logits are the speech's own (the head reads the encoder's class tokens, not the latent, so the
+reading against the reference moves only the latent's part of :meth:`EmotionPerception.read`; beyond the
+calibrated range, where the head reads alone, both hearings are the head's).
+
+A reference is at least :data:`MIN_SECONDS` of sound (:func:`check_reference`): a shorter one is one window
+padded with silence, whose latent is partly the padding's.
 """
 
 from __future__ import annotations
@@ -31,9 +36,19 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from emogesture.audio import TARGET_SAMPLE_RATE, check_speech
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.perception import EmotionPerception
 from emogesture.pipeline.speech import EncodedWindows
+
+
+MIN_SECONDS = 10.0  # one whole window
+
+
+def check_reference(waveform: np.ndarray, source: str) -> None:
+    """A one-line error naming ``source`` for a 16 kHz waveform ``[N]`` that cannot be a neutral reference:
+    shorter than :data:`MIN_SECONDS`, or silent."""
+    check_speech(waveform, TARGET_SAMPLE_RATE, source, min_seconds=MIN_SECONDS, allow_silence=False)
 
 
 @dataclass(frozen=True)
@@ -63,7 +78,8 @@ class NeutralReference:
 
     def relative(self, enc: EncodedWindows) -> EncodedWindows:
         """``enc`` with its emotion latents ``[W, D]`` (and pitch-moved hearings ``[S, W, D]``) moved by the
-        offset; everything else as it is. Hearings the reference lacks take the offset as recorded."""
+        offset; everything else (the logits too) as it is. Hearings the reference lacks take the offset as
+        recorded."""
         kwargs = {"emotion": (enc.emotion + self.offset[None]).astype(np.float32)}
         if enc.shifted_emotion is not None:
             offsets = (self.shifted_offsets if self.shifted_offsets is not None

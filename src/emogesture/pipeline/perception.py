@@ -387,20 +387,18 @@ class PerceivedEmotion:
         label, _ = self.majority
         return float(self.probabilities[:, EMOTIONS.index(label)].mean())
 
+    @property
+    def unlike_training_voices(self) -> bool:
+        """Whether at least half the windows lie beyond the calibrated range or nearer the real voices' means
+        than the corpus's (False without a calibration)."""
+        if self.trust is None:
+            return False
+        real = int((self.real_voices > 0.5).sum()) if self.real_voices is not None else 0
+        return 2 * max(real, int((self.trust < 1.0).sum())) >= len(self.labels)
+
     def summary(self, mode: str) -> str:
         """One line: the emotion heard, how, and what ``mode`` (``auto``/``own``) does about windows beyond
-        the calibrated range; for a recording mostly unlike the training voices, read alone, a pointer to a
-        neutral reference of the speaker."""
-        text = self._summary(mode)
-        if self.trust is None or self.neutral_reference is not None:
-            return text
-        real = int((self.real_voices > 0.5).sum()) if self.real_voices is not None else 0
-        if 2 * max(real, int((self.trust < 1.0).sum())) >= len(self.labels):
-            text += (". Heard alone, a real person's even voice can sound emotional to this model: a calm "
-                     "recording of the same speaker (--neutral-from) reads its emotion against their own voice")
-        return text
-
-    def _summary(self, mode: str) -> str:
+        the calibrated range."""
         label, count = self.majority
         n = len(self.labels)
         text = (f"{self.source}: perceived emotion {label} ({count} of {n} window{'s' * (n != 1)}, "

@@ -124,14 +124,16 @@ class GestureStream:
              catch_up: bool = False) -> list[StreamFrames]:
         """Mono samples ``[N]`` (float in [-1, 1]) at ``sample_rate`` -> the frames decided by the updates
         they complete (possibly none). ``catch_up``: where the samples complete several hops, update once, at
-        the last (a server that fell behind spends one window on all the audio that waited)."""
+        the last (a server that fell behind spends one window on all the audio that waited), or every 9.75 s of
+        audio when more waited (an update's frames lie within its 10-s window)."""
         x = np.asarray(samples, np.float32).reshape(-1)
         if sample_rate != TARGET_SAMPLE_RATE:
             x = resample(x, sample_rate, TARGET_SAMPLE_RATE)
         out = []
         hop = int(round(self.settings.hop_seconds * TARGET_SAMPLE_RATE))
+        most = max(1, int((self.window - hop) // hop))  # hops one update may cover: its frames lie in the window
         while len(x):
-            hops = 1 + (max(0, (self.received + len(x)) // hop - self.updates - 1) if catch_up else 0)
+            hops = min(most, 1 + (max(0, (self.received + len(x)) // hop - self.updates - 1) if catch_up else 0))
             room = hop * (self.updates + hops) - self.received  # samples until the update
             piece, x = x[:room], x[room:]
             self._append(piece)
@@ -164,8 +166,9 @@ class GestureStream:
         if new <= 0:
             return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
         enc, _ = self.pipe.encode(self.audio, perceived=False)  # a stream reports no perception
-        if self.neutral_reference is not None:
-            enc = self.neutral_reference.relative(enc)
+        reference = self.neutral_reference  # read once: another thread may change it
+        if reference is not None:
+            enc = reference.relative(enc)
         conds = self.pipe.conditions(enc, self.edit, self.mode)
         k = self.settings.candidates
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
