@@ -44,9 +44,7 @@ def _perception(pipe: GesturePipeline, wave: np.ndarray, emotion: str, name: str
                 neutral: np.ndarray | None = None) -> tuple[dict, object]:
     encoded = pipe.encode(wave)
     reference = None if neutral is None else pipe.neutral_reference(neutral, f"{name}, neutral reference")
-    heard = pipe.perceive(*encoded, name, reference=reference)
-    if reference is not None:  # generated as `generate --neutral-from` does
-        encoded = (reference.relative(encoded[0]), encoded[1])
+    heard, encoded = pipe.perceive_against(encoded, name, reference)  # as `generate --neutral-from` does
     trusted = None if heard.trust is None else [bool(t >= 1.0) for t in heard.trust]
     return {"seconds": round(len(wave) / TARGET_SAMPLE_RATE, 2), "windows": len(heard.labels), "heard": heard.labels,
             "heard_counts": dict(Counter(heard.labels)),

@@ -239,9 +239,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
         encoded = pipe.encode(wave, progress=bar.update)
     reference = (None if neutral_wave is None else
                  pipe.neutral_reference(neutral_wave, str(request.neutral_from), generation=settings))
-    perceived = [pipe.perceive(*encoded, source=str(request.speech), reference=reference)]
-    if reference is not None:  # the gesture model is given the speech read against the speaker's neutral
-        encoded = (reference.relative(encoded[0]), encoded[1])
+    heard, encoded = pipe.perceive_against(encoded, str(request.speech), reference)
+    perceived = [heard]
     if request.timeline is not None:  # the emotion in force in each window, in the report
         perceived[0].in_force = request.timeline.window_report(
             request.timeline.shares(encoded[1], WINDOW_SECONDS, len(wave) / TARGET_SAMPLE_RATE))

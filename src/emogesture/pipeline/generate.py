@@ -149,15 +149,23 @@ class GesturePipeline:
             raise EmogestureError(f"unknown edit source {edit!r}; known: emotion, style")
         return ("emotion", "style") if perception_of(self.speech) is not None else ("emotion",)
 
-    def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str,
-                 reference: NeutralReference | None = None) -> PerceivedEmotion:
-        """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it;
-        with a neutral ``reference`` of the speaker, read against it as well
-        (:mod:`emogesture.pipeline.neutral_reference`)."""
+    def perceive(self, enc: EncodedWindows, starts_s: list[float], source: str) -> PerceivedEmotion:
+        """What emotion the speech model hears in each window of an encoded audio, and how far it trusts it."""
+        return perceive(enc, starts_s, perception_of(self.speech), source)
+
+    def perceive_against(self, encoded: tuple[EncodedWindows, list[float]], source: str,
+                         reference: NeutralReference | None
+                         ) -> tuple[PerceivedEmotion, tuple[EncodedWindows, list[float]]]:
+        """What is heard in an encoded audio (:meth:`perceive`) and the encoding the gesture model is to be
+        given: with a neutral ``reference`` of the speaker, heard both alone and against it, and the windows
+        moved by it (:mod:`emogesture.pipeline.neutral_reference`); without one, the audio's own."""
         if reference is None:
-            return perceive(enc, starts_s, perception_of(self.speech), source)
-        return perceive(enc, starts_s, perception_of(self.speech), source, relative=reference.relative(enc),
-                        neutral_reference=reference.source)
+            return self.perceive(*encoded, source), encoded
+        enc, starts = encoded
+        relative = reference.relative(enc)
+        heard = perceive(enc, starts, perception_of(self.speech), source, relative=relative,
+                         neutral_reference=reference.source)
+        return heard, (relative, starts)
 
     def load_neutral_reference(self, path: str | PathLike[str]) -> np.ndarray:
         """A recording of the speaker speaking without emotion -> 16 kHz waveform ``[N]``; a one-line error
