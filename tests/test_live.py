@@ -179,6 +179,27 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
     assert proc.poll() is None
 
 
+def test_the_client_sends_a_neutral_recording_first_and_keeps_only_the_speechs_frames(server, tmp_path):
+    from emogesture.errors import InputFileError
+    from emogesture.live.client import stream_file
+
+    url, clip, proc = server
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    calm = tmp_path / "calm.wav"
+    sf.write(calm, wave[int(8 * sr):int(18.5 * sr)], sr)  # 10.5 s of the same speaker
+    alone = asyncio.run(stream_file(url, clip, emotion="own", realtime=False, seed=3))
+    against = asyncio.run(stream_file(url, clip, emotion="own", realtime=False, seed=3, neutral_from=calm))
+    assert not alone.errors + against.errors
+    assert len(against.poses) == len(alone.poses) == round(7.3 * 30)
+    assert np.isfinite(against.latency).all() and against.latency.min() > 0
+    assert np.abs(against.poses - alone.poses).mean() > 1e-4  # another motion: not the lead's frames, not alone
+    short = tmp_path / "short.wav"
+    sf.write(short, wave[: 3 * sr], sr)
+    with pytest.raises(InputFileError, match="short.wav.*too short"):  # said before connecting
+        asyncio.run(stream_file(url, clip, neutral_from=short))
+    assert proc.poll() is None
+
+
 def test_bad_clients_get_one_line_errors_and_the_server_carries_on(server):
     from websockets.exceptions import ConnectionClosed
     from websockets.sync.client import connect

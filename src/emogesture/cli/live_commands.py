@@ -26,6 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("speech", type=Path, help="speech audio (any format generate reads)")
     p.add_argument("--url", default="ws://127.0.0.1:8765/live", help="the server (default ws://127.0.0.1:8765/live)")
     p.add_argument("--emotion", default="auto", help="auto, own or an emotion label")
+    p.add_argument("--neutral-from", type=Path, metavar="WAV",
+                   help="a recording of the same speaker speaking without emotion (at least 10 s), sent first: "
+                   "the speech's emotion is heard against it (its own frames are left out)")
     p.add_argument("--chunk", type=float, default=0.1, help="seconds of audio per message (default 0.1)")
     p.add_argument("--fast", action="store_true", help="send as fast as possible instead of at the pace of speech")
     p.add_argument("-o", "--out", type=Path, help="write the frames received as this .npz")
@@ -68,7 +71,7 @@ def run_live_client(args: argparse.Namespace) -> int:
         check_output(args.out, args.overwrite)
     try:
         result = asyncio.run(stream_file(args.url, args.speech, emotion=args.emotion, chunk_seconds=args.chunk,
-                                         realtime=not args.fast))
+                                         realtime=not args.fast, neutral_from=args.neutral_from))
     except OSError as e:
         from emogesture.errors import EmogestureError
 

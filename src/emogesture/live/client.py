@@ -4,6 +4,7 @@ each arrived. A model of what a game-engine client does (protocol: :mod:`emogest
 Example::
 
     result = asyncio.run(stream_file("ws://127.0.0.1:8765/live", "talk.wav", emotion="anger"))
+    result = asyncio.run(stream_file(url, "talk.wav", emotion="own", neutral_from="calm.wav"))
     print(len(result.poses), np.median(result.latency))
 """
 
@@ -21,6 +22,9 @@ from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
 from emogesture.errors import EmogestureError
 
 
+REFERENCE_TIMEOUT = 120.0  # seconds the client waits for the server to make the neutral reference
+
+
 @dataclass
 class LiveResult:
     """What came back: ``poses [T, 55, 3]`` and ``trans [T, 3]`` (SMPL-X skeleton), and per frame the seconds
@@ -32,16 +36,33 @@ class LiveResult:
     errors: list[str] = field(default_factory=list)
 
 
+def _pcm(path: str | PathLike[str]) -> np.ndarray:
+    return (np.clip(load_audio(path)[0], -1, 1) * 32767).astype("<i2")
+
+
 async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "auto", chunk_seconds: float = 0.1,
-                      realtime: bool = True, changes: dict[float, str] | None = None, seed: int = 0) -> LiveResult:
+                      realtime: bool = True, changes: dict[float, str] | None = None, seed: int = 0,
+                      neutral_from: str | PathLike[str] | None = None) -> LiveResult:
     """Send ``path`` to the server at ``url`` in ``chunk_seconds`` pieces (at the pace of speech when
-    ``realtime``), changing the emotion at the seconds given in ``changes`` (``{15.0: "sadness"}``)."""
+    ``realtime``), changing the emotion at the seconds given in ``changes`` (``{15.0: "sadness"}``).
+
+    ``neutral_from``: a recording of the same speaker speaking without emotion, sent first (as fast as it goes)
+    between ``{"neutral": "start"}`` and ``{"neutral": "stop"}``; the speech follows once the server has made
+    its reference, and the frames of the neutral recording are left out of the result."""
     from websockets.asyncio.client import connect
 
-    wave = load_audio(path)[0]
-    pcm = (np.clip(wave, -1, 1) * 32767).astype("<i2")
+    pcm = _pcm(path)
+    lead = np.zeros(0, "<i2")
+    if neutral_from is not None:
+        from emogesture.pipeline.neutral_reference import check_reference
+
+        lead = _pcm(neutral_from)
+        check_reference(lead.astype(np.float32) / 32767, str(neutral_from))  # too short or silent: say so here
+    skip = int(np.ceil(len(lead) / TARGET_SAMPLE_RATE * 30.0 - 1e-9))  # the frames of the neutral recording
+    pcm = np.concatenate([lead, pcm])
     step = max(1, int(round(chunk_seconds * TARGET_SAMPLE_RATE)))
     sent_at = np.full(len(pcm) + 1, np.nan)  # when the sample at each index left
+    referenced = asyncio.Event()
     frames: dict[int, dict] = {}
     arrived: dict[int, float] = {}
     errors: list[str] = []
@@ -53,14 +74,27 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
             raise EmogestureError(f"{url}: {hello['error']}")
 
         async def send() -> None:
+            if len(lead):
+                await ws.send(json.dumps({"neutral": "start"}))
+                for i in range(0, len(lead), step):
+                    await ws.send(lead[i:i + step].tobytes())
+                    sent_at[i:min(i + step, len(lead)) + 1] = time.perf_counter()
+                await ws.send(json.dumps({"neutral": "stop"}))
+                try:
+                    await asyncio.wait_for(referenced.wait(), REFERENCE_TIMEOUT)
+                except asyncio.TimeoutError:
+                    errors.append(f"no neutral reference came back in {REFERENCE_TIMEOUT:.0f} s; the speech is "
+                                  "heard alone")
             start = time.perf_counter()
-            for i in range(0, len(pcm), step):
-                for at in [t for t in pending if t * TARGET_SAMPLE_RATE <= i]:
+            for i in range(len(lead), len(pcm), step):
+                at_speech = (i - len(lead)) / TARGET_SAMPLE_RATE
+                for at in [t for t in pending if t <= at_speech]:
                     await ws.send(json.dumps({"emotion": pending.pop(at)}))
                 if realtime:
-                    await asyncio.sleep(max(0.0, start + i / TARGET_SAMPLE_RATE - time.perf_counter()))
-                await ws.send(pcm[i:i + step].tobytes())
-                sent_at[i:i + step + 1] = time.perf_counter()
+                    await asyncio.sleep(max(0.0, start + at_speech - time.perf_counter()))
+                chunk = pcm[i:min(i + step, len(pcm))]
+                await ws.send(chunk.tobytes())
+                sent_at[i:i + len(chunk) + 1] = time.perf_counter()
             await ws.send(json.dumps({"end": True}))
 
         sender = asyncio.create_task(send())
@@ -69,6 +103,8 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
             now = time.perf_counter()
             if "error" in reply:
                 errors.append(reply["error"])
+            if "neutral_reference" in reply or ("error" in reply and "neutral recording" in reply["error"]):
+                referenced.set()  # made, or could not be: the speech goes on either way
             for frame in reply.get("frames", []):
                 frames[frame["frame"]] = frame
                 arrived[frame["frame"]] = now
@@ -78,6 +114,7 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
     order = sorted(frames)
     if order != list(range(len(order))):
         raise EmogestureError(f"{url}: frames arrived with gaps")
+    order = order[skip:]
     index = np.minimum((np.array(order) / 30.0 * TARGET_SAMPLE_RATE).astype(int), len(pcm))
     latency = np.array([arrived[i] for i in order]) - sent_at[index]
     poses = np.array([frames[i]["poses"] for i in order], np.float32).reshape(-1, 55, 3)
