@@ -93,8 +93,9 @@ speech_second_stage() {  # OUT FIRST CACHE TIMES [option ...] : the recipe's sec
         "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_BAND[@]}" "${SPEECH_VARIANTS[@]}" "$@" --quiet
 }
 
-train_bundle() {  # RUN CACHE
-    local run=$1 cache=$2 todo=() pids=() threads model pid speech
+train_bundle() {  # RUN CACHE [SPEECH_CACHE]: the speech stages learn from SPEECH_CACHE (default CACHE), the rest
+    # from CACHE
+    local run=$1 cache=$2 speech_cache=${3:-$2} todo=() pids=() threads model pid speech
     mkdir -p "$run"
     # the speech model and the extractor side by side (the speech model's augmented windows made first, on
     # every core), one thread for the extractor (two when left alone)
@@ -103,7 +104,7 @@ train_bundle() {  # RUN CACHE
     threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
     for model in "${todo[@]}"; do
         if [ "$model" = speech ]; then
-            timed "$run/times.txt" speech $EG train speech --data "$cache" --out "$run/speech" --losses adversarial \
+            timed "$run/times.txt" speech $EG train speech --data "$speech_cache" --out "$run/speech" --losses adversarial \
                 --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 "${SPEECH_VARIANTS[@]}" --quiet &
         else
             OMP_NUM_THREADS=$threads timed "$run/times.txt" extractor $EG train extractor --data "$cache" \
@@ -113,7 +114,7 @@ train_bundle() {  # RUN CACHE
     done
     for pid in "${pids[@]}"; do wait "$pid"; done
     speech=$run/speech_tuned
-    speech_second_stage "$speech" "$run/speech" "$cache" "$run/times.txt"
+    speech_second_stage "$speech" "$run/speech" "$speech_cache" "$run/times.txt"
     train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
