@@ -144,3 +144,12 @@ ship_bundle() {  # BUNDLE REPORT TIMES : 6. the bundle, as shipped (float16), sc
     cp "$bundle"/{speech,gesture,extractor}.{json,safetensors} "$bundle"/{MODEL_CARD.md,card.json,SHA256SUMS} "$assets/"
     $EG model-info
 }
+
+wide_speakers_cache() {  # the experiments' corpus with the speakers' own speaking style 2.5 times as wide
+    # (`corpus --speaker-prosody-scale 2.5`) and its windows cache, built or completed when missing:
+    # sets WIDE_CORPUS and WIDE_CACHE (speaker_spread.sh, wide_speakers.sh)
+    WIDE_CORPUS=$WORK/corpus30s
+    WIDE_CACHE=$WORK/cache30s
+    $EG corpus --out "$WIDE_CORPUS" --speakers 30 --speaker-prosody-scale 2.5 --resume --quiet
+    $EG prepare "$WIDE_CORPUS" --out "$WIDE_CACHE" --set split_source=csv+actor --quiet
+}

@@ -17,14 +17,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source experiments/common.sh
 source experiments/recipe.sh
-WIDE_CORPUS=$WORK/corpus30s
-WIDE_CACHE=$WORK/cache30s
 RUN=$WORK/speaker_spread
 REPORT=experiments/reports/speaker_spread
 SHIPPED=src/emogesture/assets/model
 mkdir -p "$REPORT"
-$EG corpus --out "$WIDE_CORPUS" --speakers 30 --speaker-prosody-scale 2.5 --resume --quiet
-$EG prepare "$WIDE_CORPUS" --out "$WIDE_CACHE" --set split_source=csv+actor --quiet
+wide_speakers_cache
 train_bundle "$RUN" "$WIDE_CACHE"
 train_gesture "$RUN/gesture_shipped_speech" "$WIDE_CACHE" "$SHIPPED/speech.json" "$RUN/times.txt" gesture_shipped_speech
 # the control: the same gesture training on the shipped corpus with the shipped speech model

@@ -15,14 +15,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source experiments/common.sh
 source experiments/recipe.sh
-WIDE_CORPUS=$WORK/corpus30s
-WIDE_CACHE=$WORK/cache30s
 RUN=$WORK/wide_speakers
 REPORT=experiments/reports/wide_speakers
 SHIPPED=src/emogesture/assets/model
 mkdir -p "$RUN" "$REPORT"
-$EG corpus --out "$WIDE_CORPUS" --speakers 30 --speaker-prosody-scale 2.5 --resume --quiet
-$EG prepare "$WIDE_CORPUS" --out "$WIDE_CACHE" --set split_source=csv+actor --quiet
+wide_speakers_cache
 grep -qs '"step": 1300' "$RUN/speech/model.json" || timed "$RUN/times.txt" speech $EG train speech \
     --data "$WIDE_CACHE" --out "$RUN/speech" --losses adversarial --steps 1300 --checkpoint-every 100 \
     --set wave_augment=0.5 "${SPEECH_VARIANTS[@]}" --quiet
