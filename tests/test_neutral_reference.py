@@ -124,6 +124,29 @@ def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsy
     assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())  # nothing written
 
 
+def test_a_calm_stretch_of_the_speech_itself_is_a_reference_too(tmp_path, capsys, one_thread):
+    talk, calm = DEMO_CLIPS / "talk.flac", tmp_path / "calm.wav"  # 20.475 s at 16 kHz
+    wave, rate = sf.read(talk, dtype="float32")
+    sf.write(calm, wave[-10 * rate:], rate)
+    args = ["generate", str(talk), "--format", "npz", "--seam-candidates", "1", "--device", "cpu", "--quiet"]
+    assert main([*args, "-o", str(tmp_path), "--neutral-from", str(calm)]) == 0
+    assert main([*args, "-o", str(tmp_path), "--neutral-span", "10.475-20.475"]) == 0
+    out = capsys.readouterr().out
+    assert f"read against the speaker's neutral voice in {talk} 10.475-20.475 s" in out
+    from_file = np.load(tmp_path / "talk_neutral-calm_seed0_0.npz")["poses"]
+    from_span = np.load(tmp_path / "talk_neutral-talk-10.475-20.475s_seed0_0.npz")["poses"]
+    np.testing.assert_allclose(from_span, from_file, atol=1e-5)  # the same samples, the same reference
+    assert main([*args, "-o", str(tmp_path), "--neutral-from", str(calm), "--neutral-span", "0-10"]) == 0  # of it
+    for span, problem in (("0-5", "--neutral-span 0-5: 5 s; a neutral reference needs at least 10 s"),
+                          ("5-abc", "--neutral-span '5-abc': START-END in seconds"),
+                          ("12-2", "--neutral-span 12-2: START-END in seconds, START >= 0"),
+                          ("5-30", f"{talk}: 20.5 s long; the neutral span 5-30 s lies beyond its end")):
+        assert main([*args, "-o", str(tmp_path / "x"), "--neutral-span", span]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and problem in err[0], err
+    assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())  # nothing written
+
+
 def test_generate_suggests_a_reference_only_for_its_own_emotion_of_an_unfamiliar_voice(tmp_path, monkeypatch,
                                                                                         one_thread):
     from emogesture.pipeline.animate import NEUTRAL_HINT, AnimationRequest, animate

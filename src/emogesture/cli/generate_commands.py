@@ -34,6 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--neutral-from", type=Path, metavar="WAV",
                    help="a recording of the same speaker speaking without emotion (10 s or more): the speech's "
                         "emotion is heard and animated relative to this speaker's neutral voice")
+    p.add_argument("--neutral-span", metavar="START-END",
+                   help="seconds of the --neutral-from recording to use (e.g. 0-15); without --neutral-from, a calm "
+                        "stretch of each speech itself, such as its opening")
     p.add_argument("--format", default="npz,bvh,mp4",
                    help="comma-separated output formats: npz, bvh, mp4, glb, fbx (fbx needs Blender; default npz,bvh,mp4)")
     p.add_argument("--skeleton", default="smplx", choices=["smplx", "mixamo"],
@@ -78,7 +81,8 @@ def run_generate(args: argparse.Namespace) -> int:
 
     template = AnimationRequest(args.speech[0], args.out, emotion=args.emotion or "auto",
                                 emotion_weight=args.emotion_weight, emotion_from=args.emotion_from,
-                                style_from=args.style_from, neutral_from=args.neutral_from, formats=args.format,
+                                style_from=args.style_from, neutral_from=args.neutral_from,
+                                neutral_span=args.neutral_span, formats=args.format,
                                 seed=args.seed, samples=args.samples,
                                 seam_candidates=args.seam_candidates, overwrite=args.overwrite,
                                 skip_existing=args.skip_existing, skeleton=args.skeleton)

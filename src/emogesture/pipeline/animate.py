@@ -30,6 +30,7 @@ from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, pa
 from emogesture.fileio import atomic_output, check_output
 from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
+from emogesture.pipeline.neutral_reference import MIN_SECONDS
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
 from emogesture.pipeline.postprocess import candidates_drawn
 from emogesture.pipeline.timeline import EmotionTimeline, is_timeline
@@ -49,10 +50,23 @@ def emotion_request(text: str | None) -> tuple[str, str | None]:
     return "auto", value
 
 
+def parse_span(text: str) -> tuple[float, float]:
+    """``"START-END"`` (seconds, e.g. ``"0-15"`` or ``"2.5-14"``) -> ``(start, end)``; a one-line error
+    otherwise."""
+    start, sep, end = text.strip().partition("-")
+    try:
+        if not sep:
+            raise ValueError
+        return float(start), float(end)
+    except ValueError:
+        raise EmogestureError(f"--neutral-span {text!r}: START-END in seconds, e.g. 0-15") from None
+
+
 #: added to the speech's summary when its own emotion, read alone, comes from a voice mostly unlike the
 #: training voices
 NEUTRAL_HINT = ("; heard alone, a real person's even voice can sound emotional to this model: a calm recording "
-                "of the same speaker (--neutral-from) reads its emotion against their own voice")
+                "of the same speaker (--neutral-from), or a calm stretch of this one (--neutral-span START-END), "
+                "reads its emotion against their own voice")
 
 @dataclass
 class AnimationRequest:
@@ -78,6 +92,9 @@ class AnimationRequest:
     #: a recording of the same speaker speaking without emotion: the speech's emotion is read against it
     #: (:mod:`emogesture.pipeline.neutral_reference`)
     neutral_from: Path | None = None
+    #: seconds ``(start, end)`` of the neutral recording to read against, or ``"START-END"``; without
+    #: ``neutral_from``, a stretch of the speech itself (a calm opening, say); None: the whole recording
+    neutral_span: tuple[float, float] | str | None = None
     formats: tuple[str, ...] = DEFAULT_FORMATS
     seed: int = 0
     samples: int = 1
@@ -99,6 +116,8 @@ class AnimationRequest:
         self.emotion_from = None if self.emotion_from is None else Path(self.emotion_from)
         self.style_from = None if self.style_from is None else Path(self.style_from)
         self.neutral_from = None if self.neutral_from is None else Path(self.neutral_from)
+        if isinstance(self.neutral_span, str):
+            self.neutral_span = parse_span(self.neutral_span)
         self.validate()
 
     def validate(self) -> None:
@@ -127,6 +146,15 @@ class AnimationRequest:
         if self.out.exists() and not self.out.is_dir():
             raise EmogestureError(f"{self.out}: is a file; --out must be a folder")
         rig_named(self.skeleton)
+        if self.neutral_span is not None:
+            start, end = (float(t) for t in self.neutral_span)
+            if not 0.0 <= start < end:
+                raise EmogestureError(f"--neutral-span {start:g}-{end:g}: START-END in seconds, START >= 0 and "
+                                      "END after it")
+            if end - start < MIN_SECONDS:
+                raise EmogestureError(f"--neutral-span {start:g}-{end:g}: {end - start:g} s; a neutral reference "
+                                      f"needs at least {MIN_SECONDS:g} s")
+            self.neutral_span = (start, end)
         if self.overwrite and self.skip_existing:
             raise EmogestureError("--overwrite and --skip-existing: choose one")
 
@@ -134,6 +162,21 @@ class AnimationRequest:
     def edited(self) -> bool:
         """Whether anything comes from elsewhere: an emotion label or recording, or a style recording."""
         return bool(self.emotion_from or self.label or self.style_from or self.timeline)
+
+    @property
+    def neutral_source(self) -> Path | None:
+        """The recording the speech's emotion is read against: ``neutral_from``, or the speech itself when only
+        a span is given; None: none."""
+        return self.neutral_from or (self.speech if self.neutral_span is not None else None)
+
+    def neutral_name(self, short: bool = False) -> str | None:
+        """The neutral reference as reports (``short``: videos) name it: the file (its name alone) and the span's
+        seconds."""
+        source = self.neutral_source
+        if source is None:
+            return None
+        return ((source.name if short else str(source))
+                + ("" if self.neutral_span is None else " {:g}-{:g} s".format(*self.neutral_span)))
 
     @property
     def tag(self) -> str:
@@ -148,8 +191,10 @@ class AnimationRequest:
             tag += f"_emotion-{self.timeline.tag}"
         if self.style_from:
             tag += f"_style-{self.style_from.stem}"
-        if self.neutral_from:  # after the edits, before _own
-            tag += f"_neutral-{self.neutral_from.stem}"
+        if self.neutral_source is not None:  # after the edits, before _own
+            tag += f"_neutral-{self.neutral_source.stem}"
+            if self.neutral_span is not None:
+                tag += "-{:g}-{:g}s".format(*self.neutral_span)
         return tag + ("_own" if self.mode == "own" else "")
 
     def outputs(self) -> list[Path]:
@@ -176,8 +221,8 @@ class AnimationRequest:
                    if self.emotion_from else f"emotion: own ({self.mode})")
         if (self.label or self.emotion_from) and self.weight < 1.0:
             emotion += f" x{self.weight:g}"
-        if self.neutral_from and (not (self.label or self.emotion_from) or self.weight < 1.0):
-            emotion += f" against {self.neutral_from.name}"  # the speech's own emotion is read against it
+        if self.neutral_source is not None and (not (self.label or self.emotion_from) or self.weight < 1.0):
+            emotion += f" against {self.neutral_name(short=True)}"  # the speech's own emotion is read against it
         return f"{self.speech.name}\n{emotion}  |  {style}\nseed {self.seed}, sample {sample}"
 
 
@@ -215,7 +260,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     wave = pipe.load_speech(request.speech)
     emotion_wave = pipe.load_speech(request.emotion_from) if request.emotion_from is not None else None
     style_wave = pipe.load_speech(request.style_from) if request.style_from is not None else None
-    neutral_wave = pipe.load_neutral_reference(request.neutral_from) if request.neutral_from is not None else None
+    neutral_wave = (None if request.neutral_source is None else
+                    pipe.load_neutral_reference(request.neutral_source, request.neutral_span))
     if request.timeline is not None:
         request.timeline.check_duration(len(wave) / TARGET_SAMPLE_RATE, request.speech)
     edit = (EditRequest(emotion_weight=request.weight, emotion_label=request.label,
@@ -238,7 +284,7 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
               desc="encoding speech", unit="window", disable=not progress, leave=False) as bar:
         encoded = pipe.encode(wave, progress=bar.update)
     reference = (None if neutral_wave is None else
-                 pipe.neutral_reference(neutral_wave, str(request.neutral_from), generation=settings))
+                 pipe.neutral_reference(neutral_wave, request.neutral_name(), generation=settings))
     heard, encoded = pipe.perceive_against(encoded, str(request.speech), reference)
     perceived = [heard]
     if request.timeline is not None:  # the emotion in force in each window, in the report

@@ -167,11 +167,22 @@ class GesturePipeline:
                          neutral_reference=reference.source)
         return heard, (relative, starts)
 
-    def load_neutral_reference(self, path: str | PathLike[str]) -> np.ndarray:
-        """A recording of the speaker speaking without emotion -> 16 kHz waveform ``[N]``; a one-line error
-        for one that cannot be a neutral reference (too short, silent; :func:`check_reference`)."""
+    def load_neutral_reference(self, path: str | PathLike[str],
+                               span: tuple[float, float] | None = None) -> np.ndarray:
+        """A recording of the speaker speaking without emotion (with ``span``, its seconds ``start`` to ``end``)
+        -> 16 kHz waveform ``[N]``; a one-line error for one that cannot be a neutral reference (too short,
+        silent; :func:`check_reference`)."""
         wave, _ = load_audio(path)
-        check_reference(wave, str(path))
+        source = str(path)
+        if span is not None:
+            start, end = span
+            seconds = len(wave) / TARGET_SAMPLE_RATE
+            if end > seconds + 1e-6:
+                raise InputFileError(path, f"{seconds:.1f} s long; the neutral span {start:g}-{end:g} s lies beyond "
+                                     "its end")
+            wave = wave[int(round(start * TARGET_SAMPLE_RATE)):int(round(end * TARGET_SAMPLE_RATE))]
+            source += f" {start:g}-{end:g} s"
+        check_reference(wave, source)
         return wave
 
     def neutral_reference(self, waveform: np.ndarray, source: str, generation: GenerationConfig | None = None,
