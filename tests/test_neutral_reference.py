@@ -178,6 +178,10 @@ def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
                                                  neutral_from=str(calm))
     assert "_neutral-calm_" in video and rows
     assert "read against the speaker's neutral voice in calm.wav" in summary and str(tmp_path) not in summary
+    video, _, _, summary, _ = session.run(str(talk), "auto", "", 1.0, None, None, 0, 1, "smplx",
+                                          neutral_span=" 10-20 ")  # a calm stretch of the speech itself
+    assert "_neutral-talk-10-20s_" in video
+    assert "read against the speaker's neutral voice in talk.flac 10-20 s" in summary, summary
 
 
 def test_a_stream_reads_the_speech_against_the_reference_from_its_next_update(one_thread):

@@ -67,7 +67,7 @@ class AppSession:
 
     def run(self, speech: str | None, emotion: str, timeline: str, weight: float, emotion_from: str | None,
             style_from: str | None, seed: float, samples: float, skeleton: str,
-            neutral_from: str | None = None) -> tuple:
+            neutral_from: str | None = None, neutral_span: str | None = None) -> tuple:
         """The page's inputs -> (video, 3D view value, perception rows, summary, files). A bad input raises
         :class:`EmogestureError` with the message the page shows."""
         if not speech:
@@ -81,7 +81,8 @@ class AppSession:
             emotion_weight=float(weight) if (label_given and not timeline and float(weight) < 1.0) else None,
             emotion_from=Path(emotion_from) if emotion_from and not timeline else None,
             style_from=Path(style_from) if style_from else None,
-            neutral_from=Path(neutral_from) if neutral_from else None, formats=self.formats, seed=int(seed),
+            neutral_from=Path(neutral_from) if neutral_from else None,
+            neutral_span=(neutral_span or "").strip() or None, formats=self.formats, seed=int(seed),
             samples=int(samples), skeleton=skeleton)
         if request.label is not None and emotion_from:
             raise EmogestureError("choose an emotion label or an emotion recording, not both")
@@ -100,7 +101,8 @@ class AppSession:
             if other is not None:
                 summaries = [line.replace(str(other), other.name) for line in summaries]
         summaries = [line.replace("(--neutral-from)", "(\"the same speaker without emotion\", under \"from other "
-                                  "recordings\")") for line in summaries]
+                                  "recordings\")").replace("(--neutral-span START-END)", "(its calm seconds, under "
+                                                            "\"from other recordings\")") for line in summaries]
         return (str(video), {"glb": _file_url(glb), "audio": _file_url(listen)}, perception_rows(report),
                 "\n\n".join(summaries) + note, files)
 
@@ -130,6 +132,8 @@ def build_app(session: AppSession):
                                           label="speaker style from this recording")
                     neutral_from = gr.Audio(sources=["upload", "microphone"], type="filepath",
                                             label="the same speaker without emotion (read the emotion against it)")
+                    neutral_span = gr.Textbox(label="its calm seconds (START-END), or without it the speech's own",
+                                              placeholder="0-15", elem_id="neutral-span")
                     seed = gr.Number(value=0, precision=0, label="seed")
                     samples = gr.Slider(1, 4, value=1, step=1, label="samples")
                     skeleton = gr.Radio(["smplx", "mixamo"], value="smplx", label="skeleton of bvh, glb, fbx")
@@ -144,7 +148,7 @@ def build_app(session: AppSession):
                                      label="emotion perceived in each window", elem_id="perception")
                 files = gr.File(file_count="multiple", label="downloads", elem_id="downloads")
         button.click(run, [speech, emotion, timeline, weight, emotion_from, style_from, seed, samples, skeleton,
-                           neutral_from],
+                           neutral_from, neutral_span],
                      [video, viewer, table, summary, files], concurrency_limit=1)
     return page
 
