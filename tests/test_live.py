@@ -191,6 +191,7 @@ def test_the_client_sends_a_neutral_recording_first_and_keeps_only_the_speechs_f
     against = asyncio.run(stream_file(url, clip, emotion="own", realtime=False, seed=3, neutral_from=calm))
     assert not alone.errors + against.errors
     assert len(against.poses) == len(alone.poses) == round(7.3 * 30)
+    assert alone.neutral_reference is None and against.neutral_reference["seconds"] == pytest.approx(10.5)
     assert np.isfinite(against.latency).all() and against.latency.min() > 0
     assert np.abs(against.poses - alone.poses).mean() > 1e-4  # another motion: not the lead's frames, not alone
     short = tmp_path / "short.wav"

@@ -78,6 +78,9 @@ def run_live_client(args: argparse.Namespace) -> int:
         raise EmogestureError(f"{args.url}: cannot connect ({e.strerror or e})") from None
     for error in result.errors:
         print(f"server: {error}")
+    if result.neutral_reference is not None:
+        print(f"read against the neutral voice in {args.neutral_from} ({result.neutral_reference['seconds']:.1f} s, "
+              f"{result.neutral_reference['windows']} windows)")
     lat = result.latency
     print(f"{len(result.poses)} frames; latency from audio sent to frame received: median {np.median(lat):.3f} s, "
           f"95th percentile {np.quantile(lat, 0.95):.3f} s, largest {lat.max():.3f} s")

@@ -34,6 +34,8 @@ class LiveResult:
     trans: np.ndarray
     latency: np.ndarray
     errors: list[str] = field(default_factory=list)
+    #: the server's answer to a neutral recording: ``{"seconds": s, "windows": n}`` (None: none made)
+    neutral_reference: dict | None = None
 
 
 def _pcm(path: str | PathLike[str]) -> np.ndarray:
@@ -66,6 +68,7 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
     frames: dict[int, dict] = {}
     arrived: dict[int, float] = {}
     errors: list[str] = []
+    reference: dict | None = None
     pending = dict(sorted((changes or {}).items()))
     async with connect(url, max_size=16 * 2 ** 20) as ws:
         await ws.send(json.dumps({"sample_rate": TARGET_SAMPLE_RATE, "emotion": emotion, "seed": seed}))
@@ -103,6 +106,8 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
             now = time.perf_counter()
             if "error" in reply:
                 errors.append(reply["error"])
+            if reply.get("neutral_reference"):
+                reference = reply["neutral_reference"]
             if "neutral_reference" in reply or ("error" in reply and "neutral recording" in reply["error"]):
                 referenced.set()  # made, or could not be: the speech goes on either way
             for frame in reply.get("frames", []):
@@ -119,4 +124,4 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
     latency = np.array([arrived[i] for i in order]) - sent_at[index]
     poses = np.array([frames[i]["poses"] for i in order], np.float32).reshape(-1, 55, 3)
     trans = np.array([frames[i]["trans"] for i in order], np.float32).reshape(-1, 3)
-    return LiveResult(poses, trans, latency, errors)
+    return LiveResult(poses, trans, latency, errors, reference)
