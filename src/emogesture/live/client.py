@@ -108,7 +108,7 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
                 errors.append(reply["error"])
             if reply.get("neutral_reference"):
                 reference = reply["neutral_reference"]
-            if "neutral_reference" in reply or ("error" in reply and "neutral recording" in reply["error"]):
+            if "neutral_reference" in reply or "error" in reply:
                 referenced.set()  # made, or could not be: the speech goes on either way
             for frame in reply.get("frames", []):
                 frames[frame["frame"]] = frame

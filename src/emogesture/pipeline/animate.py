@@ -30,7 +30,7 @@ from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, pa
 from emogesture.fileio import atomic_output, check_output
 from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
-from emogesture.pipeline.neutral_reference import MIN_SECONDS
+from emogesture.pipeline.neutral_reference import MIN_SECONDS, reference_name
 from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
 from emogesture.pipeline.postprocess import candidates_drawn
 from emogesture.pipeline.timeline import EmotionTimeline, is_timeline
@@ -175,8 +175,7 @@ class AnimationRequest:
         source = self.neutral_source
         if source is None:
             return None
-        return ((source.name if short else str(source))
-                + ("" if self.neutral_span is None else " {:g}-{:g} s".format(*self.neutral_span)))
+        return reference_name(source.name if short else source, self.neutral_span)
 
     @property
     def tag(self) -> str:

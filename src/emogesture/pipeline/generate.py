@@ -34,7 +34,7 @@ from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
 from emogesture.pipeline.conditions import decode_latents, sample_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, settle_quiet_windows, stitch)
-from emogesture.pipeline.neutral_reference import NeutralReference, check_reference
+from emogesture.pipeline.neutral_reference import NeutralReference, check_reference, reference_name
 from emogesture.pipeline.perception import (PerceivedEmotion, auto_emotion, auto_style, fallback_style_of, perceive,
                                             perception_of)
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
@@ -173,7 +173,6 @@ class GesturePipeline:
         -> 16 kHz waveform ``[N]``; a one-line error for one that cannot be a neutral reference (too short,
         silent; :func:`check_reference`)."""
         wave, _ = load_audio(path)
-        source = str(path)
         if span is not None:
             start, end = span
             seconds = len(wave) / TARGET_SAMPLE_RATE
@@ -181,8 +180,7 @@ class GesturePipeline:
                 raise InputFileError(path, f"{seconds:.1f} s long; the neutral span {start:g}-{end:g} s lies beyond "
                                      "its end")
             wave = wave[int(round(start * TARGET_SAMPLE_RATE)):int(round(end * TARGET_SAMPLE_RATE))]
-            source += f" {start:g}-{end:g} s"
-        check_reference(wave, source)
+        check_reference(wave, reference_name(path, span))
         return wave
 
     def neutral_reference(self, waveform: np.ndarray, source: str, generation: GenerationConfig | None = None,

@@ -33,6 +33,7 @@ padded with silence, whose latent is partly the padding's.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from os import PathLike
 
 import numpy as np
 
@@ -49,6 +50,11 @@ def check_reference(waveform: np.ndarray, source: str) -> None:
     """A one-line error naming ``source`` for a 16 kHz waveform ``[N]`` that cannot be a neutral reference:
     shorter than :data:`MIN_SECONDS`, or silent."""
     check_speech(waveform, TARGET_SAMPLE_RATE, source, min_seconds=MIN_SECONDS, allow_silence=False)
+
+
+def reference_name(path: str | PathLike[str], span: tuple[float, float] | None = None) -> str:
+    """How reports and messages name a neutral reference: the recording and, with ``span``, its seconds."""
+    return str(path) + ("" if span is None else " {:g}-{:g} s".format(*span))
 
 
 @dataclass(frozen=True)
