@@ -47,6 +47,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--split", default="test", help="reference split (default test)")
     p.add_argument("--real", type=Path, help="one folder holding every real recording's clips (default: each "
                    "in its Debian package's folder)")
+    p.add_argument("--labelled", type=Path, metavar="MANIFEST",
+                   help="score emotion-labelled real speech instead (a manifest of `emogesture labelled-speech`): "
+                   "each speaker's recordings of an emotion, heard as that emotion")
+    p.add_argument("--labelled-split", default="val", choices=["train", "val", "test"],
+                   help="which speakers of --labelled (default val)")
     p.add_argument("--seeds", type=int, default=4, help="sampling seeds pooled for the motion (default 4)")
     p.add_argument("--out", required=True, type=Path, help="output folder (real_speech.json, real_speech.md)")
     p.add_argument("--overwrite", action="store_true", help="replace existing reports")
@@ -136,7 +141,8 @@ def _named_paths(items: list[str], flag: str, shape: str) -> dict[str, Path]:
 def run_evaluate_real(args: argparse.Namespace) -> int:
     from emogesture.eval.real_speech import evaluate_real_speech, real_speech_markdown
 
-    result = evaluate_real_speech(args.model, args.data, args.out, args.split, args.real, args.seeds, args.overwrite)
+    result = evaluate_real_speech(args.model, args.data, args.out, args.split, args.real, args.seeds, args.overwrite,
+                                  labelled=args.labelled, labelled_split=args.labelled_split)
     print(real_speech_markdown(result), end="")
     print(f"wrote {args.out / 'real_speech.json'} and {args.out / 'real_speech.md'}")
     return 0

@@ -171,15 +171,19 @@ def reference_recordings(cache, split: str, emotions: set[str]) -> dict[str, tup
 
 
 def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_root=None, seeds: int = 4,
-                         overwrite: bool = False, progress: bool = True) -> dict:
+                         overwrite: bool = False, progress: bool = True, labelled=None,
+                         labelled_split: str = "val") -> dict:
     """Score a gesture model (run folder or model JSON; None = the bundled model) on the real recordings
-    of :mod:`emogesture.data.real_speech` beside the held-out ``split`` takes of the windows cache
+    of :mod:`emogesture.data.real_speech` (or, with ``labelled``, a labelled-speech manifest's
+    ``labelled_split`` speakers, each speaker's clips of an emotion one recording;
+    :mod:`emogesture.data.labelled_speech`) beside the held-out ``split`` takes of the windows cache
     ``cache_dir`` spoken with the same emotions; writes ``real_speech.{json,md}`` to ``out_dir``."""
     import json
     from pathlib import Path
 
     from emogesture.checkpoints import split_use, write_text_atomic
     from emogesture.data.cache import open_cache
+    from emogesture.data.labelled_speech import labelled_recordings, read_manifest
     from emogesture.data.real_speech import load_real_recording, real_recordings
     from emogesture.errors import EmogestureError, OutputExistsError
 
@@ -190,16 +194,26 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
             raise OutputExistsError(p)
     if seeds < 1:
         raise EmogestureError(f"--seeds {seeds}: must be at least 1")
-    found = real_recordings(real_root)
-    recordings = {r.name: (load_real_recording(r, real_root), r.emotion) for r in found}
+    if labelled is not None:
+        recordings = labelled_recordings(read_manifest(labelled), labelled_split)
+    else:
+        found = real_recordings(real_root)
+        recordings = {r.name: (load_real_recording(r, real_root), r.emotion) for r in found}
     pipe = GesturePipeline.from_run(model)
     use = split_use(split, {"gesture": pipe.loaded, "speech": pipe.speech.loaded})
     reference = reference_recordings(open_cache(cache_dir), split, {e for _, e in recordings.values()})
     result = real_speech_report(pipe, recordings, reference, list(range(seeds)), progress)
     held = "held out (no part trained or calibrated on it)" if use["held_out"] else \
         f"not held out: calibrated on it ({', '.join(use['calibrated_on_it'])})"
-    folders = [str(real_root)] if real_root is not None else list(dict.fromkeys(str(r.folder) for r in found))
-    result["header"] = (f"Real recordings ({', '.join(folders)}) against the {split} split's takes of the same emotion: {held}; "
+    if labelled is not None:
+        trained = labelled_split == "train"
+        source = (f"Labelled real speech ({labelled}, its {labelled_split} speakers"
+                  f"{', whom a model trained on this manifest has heard' if trained else ', never trained on'})")
+        result["labelled"] = {"manifest": str(labelled), "split": labelled_split}
+    else:
+        folders = [str(real_root)] if real_root is not None else list(dict.fromkeys(str(r.folder) for r in found))
+        source = f"Real recordings ({', '.join(folders)})"
+    result["header"] = (f"{source} against the {split} split's takes of the same emotion: {held}; "
                         f"model {pipe.loaded.path}.")
     result["split_use"] = use
     result["model"] = str(pipe.loaded.path)

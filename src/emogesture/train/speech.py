@@ -10,14 +10,15 @@ import lightning as L
 import torch
 from torch.utils.data import DataLoader
 
-from emogesture.audio import augment_fbank, scramble_segments
+from emogesture.audio import TARGET_SAMPLE_RATE, augment_fbank, scramble_segments
 from emogesture.audio.wave_augment import WaveAugmentConfig
 from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.config import changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import (AugmentedWindowBank, RealNeutralWindows, SpeechQuadrupleDataset,
-                                      WaveWindowAugmenter)
+from emogesture.data.datasets import (AugmentedWindowBank, LabelledRealWindows, RealNeutralWindows,
+                                      SpeechQuadrupleDataset, WaveWindowAugmenter)
+from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.data.real_speech import load_training_voice
 from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.errors import ConfigError
@@ -79,6 +80,14 @@ class SpeechTrainConfig:
     #: take's random deviation) and taught as that emotion; the others keep the voice's own delivery, through
     #: the same processing, taught as neutral (0 = none processed: every real window as recorded, neutral).
     real_emotion_share: float = 0.0
+    #: Emotion-labelled real speech a user holds: the path of its manifest
+    #: (:mod:`emogesture.data.labelled_speech`; empty: none). Each quadruple brings one window of its train
+    #: split's speakers (an emotion drawn evenly, then one speaker's recordings of it), heard through the same
+    #: augmented conditions (``wave_augment``), and the emotion classifier learns to hear it as its emotion
+    #: (cross-entropy times ``real_labelled_weight``; ``real_neutral_pull`` pulls as for the voices above).
+    #: Not together with ``real_neutral``.
+    real_labelled: str = ""
+    real_labelled_weight: float = 1.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -116,7 +125,8 @@ class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
                  wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = (),
-                 real_emotion_share: float = 0.0, wave_variants: int = 0, progress: bool = True):
+                 real_emotion_share: float = 0.0, wave_variants: int = 0, progress: bool = True,
+                 real_labelled: str = ""):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -125,10 +135,17 @@ class SpeechDataModule(L.LightningDataModule):
         self.speakers = sorted(set(self.train.speaker_id.tolist()))
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
         augmenter = (WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig())
-                      if wave_augment > 0 or real_neutral else None)
+                      if wave_augment > 0 or real_neutral or real_labelled else None)
         scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
         real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
                                    real_emotion_share, scale) if real_neutral else None)
+        if real_labelled:
+            seconds = augmenter.window_samples / TARGET_SAMPLE_RATE + 1.0  # short ones repeated past a window
+            recordings = labelled_recordings(read_manifest(real_labelled), "train", seconds)
+            try:
+                real = LabelledRealWindows(augmenter, list(recordings.values()), wave_augment)
+            except ValueError as err:
+                raise ConfigError(f"real_labelled {real_labelled}: {err}") from None
         self.wave_variants, self.progress = wave_variants, progress
         self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
                                               augmenter if wave_augment > 0 else None, wave_augment, real)
@@ -190,10 +207,12 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
             emotion_inputs = flat.reshape(b, k, t, f).to(inputs.device)
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
                                emotion_fbank=emotion_inputs)
-        if "real" in batch and (self.cfg.real_neutral_weight > 0 or self.cfg.real_neutral_pull > 0):
+        weight = self.cfg.real_labelled_weight if self.cfg.real_labelled else self.cfg.real_neutral_weight
+        if "real" in batch and (weight > 0 or self.cfg.real_neutral_pull > 0):
             ce, pull = self.real_neutral_loss(batch["real"], batch["real_emotion"], inputs, batch["emotion"])
-            losses["real_neutral"], losses["real_neutral_pull"] = ce, pull
-            losses["total"] = losses["total"] + self.cfg.real_neutral_weight * ce + self.cfg.real_neutral_pull * pull
+            name = "real_labelled" if self.cfg.real_labelled else "real_neutral"
+            losses[name], losses[f"{name}_pull"] = ce, pull
+            losses["total"] = losses["total"] + weight * ce + self.cfg.real_neutral_pull * pull
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
@@ -201,8 +220,9 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
 
     def real_neutral_loss(self, real: torch.Tensor, real_emotion: torch.Tensor, inputs: torch.Tensor,
                           emotion: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`) of emotions
-        ``real_emotion [B]`` (neutral unless ``real_emotion_share``), through the same spectrogram
+        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`, or
+        ``real_labelled``) of emotions ``real_emotion [B]`` (neutral unless ``real_emotion_share``, or as
+        labelled), through the same spectrogram
         augmentation as the corpus's: the emotion classifier's cross-entropy toward their emotions, and the
         squared distance of each one's emotion latent to the mean latent of the batch's corpus windows of its
         emotion (``inputs [B, 4, 1024, n_mels]``, quadruple emotions ``[B]``; detached), over the corpus
@@ -276,16 +296,19 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int, progress: bool 
         raise ConfigError(f"wave_variants {config.wave_variants}: must be >= 0, and needs wave_augment > 0")
     if not 0.0 <= config.real_emotion_share <= 1.0:
         raise ConfigError(f"real_emotion_share {config.real_emotion_share}: a share of the real windows, 0-1")
-    if config.real_neutral_weight < 0 or config.real_neutral_pull < 0:
+    if config.real_neutral_weight < 0 or config.real_neutral_pull < 0 or config.real_labelled_weight < 0:
         raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}, real_neutral_pull "
-                          f"{config.real_neutral_pull}: must be >= 0")
+                          f"{config.real_neutral_pull}, real_labelled_weight {config.real_labelled_weight}: "
+                          "must be >= 0")
+    if config.real_labelled and config.real_neutral:
+        raise ConfigError("real_labelled and real_neutral: one source of real windows at a time")
     try:
         config.wave.validate()
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
                             config.train_splits, config.wave_augment, config.wave, config.real_neutral,
-                            config.real_emotion_share, config.wave_variants, progress)
+                            config.real_emotion_share, config.wave_variants, progress, config.real_labelled)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
