@@ -96,7 +96,7 @@ def run_prepare(args: argparse.Namespace) -> int:
 def run_labelled_speech(args: argparse.Namespace) -> int:
     from collections import Counter
 
-    from emogesture.data.labelled_speech import assign_speaker_splits, manifest_text, scan_layout
+    from emogesture.data.labelled_speech import SPLITS, assign_speaker_splits, manifest_text, scan_layout
     from emogesture.fileio import atomic_output, check_output
 
     check_output(args.out, args.overwrite)
@@ -105,7 +105,7 @@ def run_labelled_speech(args: argparse.Namespace) -> int:
     text = manifest_text(clips, args.out.resolve().parent)
     with atomic_output(args.out, args.overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")
-    speakers = {split: len({c.speaker for c in clips if c.split == split}) for split in ("train", "val", "test")}
+    speakers = {split: len({c.speaker for c in clips if c.split == split}) for split in SPLITS}
     emotions = Counter(c.emotion for c in clips)
     print(f"wrote {args.out}: {len(clips)} recordings of {sum(speakers.values())} speakers (train {speakers['train']}, "
           f"val {speakers['val']}, test {speakers['test']}); "

@@ -36,12 +36,12 @@ import numpy as np
 
 from emogesture.audio import TARGET_SAMPLE_RATE as SAMPLE_RATE, load_audio
 from emogesture.data.beat import EMOTIONS
+from emogesture.data.real_speech import join_clips
 from emogesture.errors import EmogestureError, InputFileError
 
 SPLITS = ("train", "val", "test")
 HEADER = ("path", "emotion", "speaker", "split")
 LAYOUTS = ("ravdess", "crema-d", "folders")
-GAP_SECONDS = 0.3
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
 #: Emotion words of labelled corpora -> the emotions here.
 EMOTION_WORDS = {e: e for e in EMOTIONS} | {
@@ -162,9 +162,9 @@ def read_manifest(path: str | PathLike[str]) -> list[LabelledClip]:
 
 def labelled_recordings(clips: list[LabelledClip], split: str,
                         min_seconds: float = 0.0) -> dict[str, tuple[np.ndarray, str]]:
-    """The ``split``'s clips joined per speaker and emotion, in path order with :data:`GAP_SECONDS` of
-    silence between them, and repeated until at least ``min_seconds`` long: ``"SPEAKER_EMOTION"`` ->
-    (16-kHz waveform ``[N]`` float32, emotion), sorted by name."""
+    """The ``split``'s clips joined per speaker and emotion, in path order with 0.3 s of silence between them
+    and repeated until at least ``min_seconds`` long (:func:`~emogesture.data.real_speech.join_clips`):
+    ``"SPEAKER_EMOTION"`` -> (16-kHz waveform ``[N]`` float32, emotion), sorted by name."""
     if split not in SPLITS:
         raise EmogestureError(f"split {split!r}; one of {', '.join(SPLITS)}")
     groups: dict[tuple[str, str], list[Path]] = defaultdict(list)
@@ -173,15 +173,6 @@ def labelled_recordings(clips: list[LabelledClip], split: str,
             groups[(c.speaker, c.emotion)].append(Path(c.path))
     if not groups:
         raise EmogestureError(f"the labelled speech holds no recording of the {split} split")
-    gap = np.zeros(int(GAP_SECONDS * SAMPLE_RATE), np.float32)
-    out = {}
-    for (speaker, emotion), paths in sorted(groups.items()):
-        waves = [load_audio(p, target_sr=SAMPLE_RATE)[0] for p in sorted(paths)]
-        parts: list[np.ndarray] = []
-        while not parts or sum(len(p) for p in parts) < min_seconds * SAMPLE_RATE:
-            for w in waves:
-                if parts:
-                    parts.append(gap)
-                parts.append(w)
-        out[f"{speaker}_{emotion}"] = (np.concatenate(parts).astype(np.float32), emotion)
-    return out
+    return {f"{speaker}_{emotion}": (join_clips([load_audio(p, target_sr=SAMPLE_RATE)[0] for p in sorted(paths)],
+                                                min_seconds), emotion)
+            for (speaker, emotion), paths in sorted(groups.items())}

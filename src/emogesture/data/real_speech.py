@@ -109,14 +109,25 @@ def load_real_recording(recording: RealRecording, root: str | PathLike[str] | No
     """The recording's clips (under ``root``; None: the recording's own folder) joined with :data:`GAP_SECONDS`
     of silence -> a 16-kHz waveform ``[N]``."""
     root = Path(root) if root is not None else recording.folder
-    parts: list[np.ndarray] = []
+    waves = []
     for clip in recording.clips:
-        if parts:
-            parts.append(np.zeros(int(GAP_SECONDS * SAMPLE_RATE), np.float32))
         path = root / clip
         if not path.is_file():
             raise InputFileError(path, f"not found; install Debian's {recording.package}")
-        parts.append(_read_clip(path))
+        waves.append(_read_clip(path))
+    return join_clips(waves)
+
+
+def join_clips(waves: list[np.ndarray], min_seconds: float = 0.0) -> np.ndarray:
+    """16-kHz clips joined in order with :data:`GAP_SECONDS` of silence between them, the whole repeated
+    (with a gap between repeats) until at least ``min_seconds`` long -> ``[N]`` float32."""
+    gap = np.zeros(int(GAP_SECONDS * SAMPLE_RATE), np.float32)
+    parts: list[np.ndarray] = []
+    while not parts or sum(len(p) for p in parts) < min_seconds * SAMPLE_RATE:
+        for wave in waves:
+            if parts:
+                parts.append(gap)
+            parts.append(wave)
     return np.concatenate(parts).astype(np.float32)
 
 

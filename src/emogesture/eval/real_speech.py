@@ -196,9 +196,13 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
         raise EmogestureError(f"--seeds {seeds}: must be at least 1")
     if labelled is not None:
         recordings = labelled_recordings(read_manifest(labelled), labelled_split)
+        heard = ", whom a model trained on this manifest has heard" if labelled_split == "train" else ", never trained on"
+        source = f"Labelled real speech ({labelled}, its {labelled_split} speakers{heard})"
     else:
         found = real_recordings(real_root)
         recordings = {r.name: (load_real_recording(r, real_root), r.emotion) for r in found}
+        folders = [str(real_root)] if real_root is not None else list(dict.fromkeys(str(r.folder) for r in found))
+        source = f"Real recordings ({', '.join(folders)})"
     pipe = GesturePipeline.from_run(model)
     use = split_use(split, {"gesture": pipe.loaded, "speech": pipe.speech.loaded})
     reference = reference_recordings(open_cache(cache_dir), split, {e for _, e in recordings.values()})
@@ -206,13 +210,7 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
     held = "held out (no part trained or calibrated on it)" if use["held_out"] else \
         f"not held out: calibrated on it ({', '.join(use['calibrated_on_it'])})"
     if labelled is not None:
-        trained = labelled_split == "train"
-        source = (f"Labelled real speech ({labelled}, its {labelled_split} speakers"
-                  f"{', whom a model trained on this manifest has heard' if trained else ', never trained on'})")
         result["labelled"] = {"manifest": str(labelled), "split": labelled_split}
-    else:
-        folders = [str(real_root)] if real_root is not None else list(dict.fromkeys(str(r.folder) for r in found))
-        source = f"Real recordings ({', '.join(folders)})"
     result["header"] = (f"{source} against the {split} split's takes of the same emotion: {held}; "
                         f"model {pipe.loaded.path}.")
     result["split_use"] = use
