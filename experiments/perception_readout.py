@@ -29,7 +29,9 @@ from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.datasets import WaveWindowAugmenter
 from emogesture.data.real_speech import load_real_recording, real_recordings
-from emogesture.pipeline.perception import LatentRange, log_softmax, perception_of
+from emogesture.models.perception import LatentRange, log_softmax
+from emogesture.pipeline.perception import perception_of
+from emogesture.eval.split_latents import encode_split
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 HOP_SECONDS = 8.0  # as perception_shift.py
@@ -50,7 +52,7 @@ def readouts(perception, augmented: LatentRange) -> dict:
 def augmented_range(encoder: SpeechLatentEncoder, cache, seed: int = 0) -> LatentRange:
     """Emotion means and spread of the train windows as recorded and once through the training augmentation."""
     train = cache.split("train")
-    clean = encoder.encode_split(cache, "train").emotion
+    clean = encode_split(encoder, cache, "train").emotion
     augment = WaveWindowAugmenter(cache, train, WaveAugmentConfig())
     heard = np.stack([augment(j, np.random.default_rng([seed, j]))
                       for j in tqdm(range(len(train)), desc="augmented train windows", leave=False)])

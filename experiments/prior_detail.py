@@ -29,7 +29,7 @@ from emogesture.models.generation import GenerationConfig
 from emogesture.motion.filters import lowpass
 from emogesture.motion import features_to_poses
 from emogesture.motion.skeleton import JOINT_NAMES
-from emogesture.pipeline.conditions import decode_latents, encode_motion
+from emogesture.pipeline.sampling import decode_latents, encode_motion
 from emogesture.pipeline.generate import GesturePipeline
 
 JOINTS = ("spine3", "neck", "head", "left_collar", "right_shoulder", "right_elbow", "left_wrist", "right_wrist")

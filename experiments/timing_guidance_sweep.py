@@ -25,7 +25,8 @@ from emogesture.data.cache import open_cache
 from emogesture.eval.gesture import GestureEvaluator
 from emogesture.eval.rhythm import other_window_pairs
 from emogesture.models.generation import TIMING_GUIDANCE_ON
-from emogesture.pipeline.conditions import generate_from_conditions, model_conditions, window_seeds
+from emogesture.eval.split_latents import model_conditions
+from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 # (r, w, σ, c): the trained decoder as it is, then guidance alone, then guidance with smoothing, then the low-pass

@@ -60,6 +60,9 @@ def test_shipped_files_match_their_checksums_and_load():
     # each emotion also read by its mean of the three real studio voices (never the real-speech checks' voices)
     assert speech.metadata.emotion_perception["info"]["real_voices"] == ["fr_june", "it_carlo", "ru_ivr"]
     assert speech.metadata.emotion_perception["labels"] == list(EMOTIONS) * 2
+    # its arrays are tensors of the weights file; the JSON stays small
+    assert (BUNDLED_MODEL / "speech.json").stat().st_size <= 100 * 1024
+    assert speech.tensors["emotion_perception.emotion.means"].shape[0] == 16
 
 
 def test_a_damaged_shipped_file_is_refused(tmp_path):

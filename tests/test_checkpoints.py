@@ -46,6 +46,19 @@ def test_a_copy_saved_in_the_stored_type_keeps_a_bundles_float16_weights_byte_fo
     assert read_meta(tmp_path / "copy", "extractor")["weights_sha256"] == half.meta["weights_sha256"]
 
 
+def test_arrays_stored_beside_the_weights_come_back_exactly_and_keep_their_type(tmp_path):
+    import numpy as np
+
+    model = _model().eval()
+    arrays = {"emotion_perception.emotion.means": np.random.default_rng(0).normal(size=(3, 5))}
+    save_model(tmp_path / "run", "extractor", model, model.config, {}, weights_dtype=torch.float16, tensors=arrays)
+    loaded = load_model(tmp_path / "run", "extractor")  # not read as weights the model lacks
+    back = loaded.tensors["emotion_perception.emotion.means"]
+    assert back.dtype == np.float64 and np.array_equal(back, arrays["emotion_perception.emotion.means"])
+    with pytest.raises(ValueError, match="must begin with"):
+        save_model(tmp_path / "bad", "extractor", model, model.config, {}, tensors={"head.weight": np.zeros(2)})
+
+
 def test_loading_draws_no_random_weights_and_sets_every_one(tmp_path, monkeypatch):
     """A model built to be loaded is built on the meta device: no random fill runs and the global random
     stream is not touched; every weight is the file's, in the model's own type (float16 files load as

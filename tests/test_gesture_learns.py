@@ -19,7 +19,7 @@ from emogesture.config import load_config, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.models.metadata import GestureMetadata
 from emogesture.motion.features import FeatureStats, MotionFeatureSpec, poses_to_features
-from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
+from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
 from emogesture.train.gesture import GestureDataModule, GestureModule, GestureTrainConfig, GestureWindows
 from emogesture.train.runs import RunOptions, run_training
 

@@ -145,7 +145,7 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
 
 
 def test_generation_is_seeded_and_batch_independent(trained):
-    from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
+    from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
 
     model = load_model(trained / "joint", "gesture")
     rng = np.random.default_rng(0)
@@ -167,7 +167,7 @@ def test_generation_is_seeded_and_batch_independent(trained):
 
 def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     from emogesture.checkpoints import content_checksum, file_sha256, model_paths
-    from emogesture.pipeline.conditions import generate_from_conditions, window_seeds
+    from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
     from safetensors.torch import load_file, save_file
 
     val_windows = len(open_cache(trained / "cache").split("val"))
@@ -216,7 +216,8 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
 
 def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(trained):
     from emogesture.audio import load_audio
-    from emogesture.pipeline.conditions import (emotion_label_edit, generate_from_conditions, model_conditions,
+    from emogesture.eval.split_latents import model_conditions
+    from emogesture.pipeline.sampling import (emotion_label_edit, generate_from_conditions,
                                                 reconstruct_motion, window_seeds)
     from emogesture.pipeline.generate import GesturePipeline
     from emogesture.pipeline.speech import SpeechLatentEncoder

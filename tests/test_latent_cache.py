@@ -8,6 +8,7 @@ from emogesture.checkpoints import save_model
 from emogesture.data.cache import open_cache
 from emogesture.data.prepare import prepare
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+from emogesture.eval.split_latents import encode_split
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.speech import speech_model_metadata
 
@@ -22,7 +23,7 @@ def test_changed_take_gives_fresh_latents(tmp_path):
     cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
     save_model(tmp_path / "speech", "speech", SpeechDisentangler(cfg), cfg,
                speech_model_metadata(cache, [1, 2], 0, ["train"]))
-    before = SpeechLatentEncoder.from_run(tmp_path / "speech").encode_split(cache, "test")
+    before = encode_split(SpeechLatentEncoder.from_run(tmp_path / "speech"), cache, "test")
     # cached beside the windows, never beside the model (the bundled model lives inside the package)
     assert len(list((tmp_path / "cache" / "latents").glob("*.npz"))) == 1 and not (tmp_path / "speech" / "latents").exists()
 
@@ -34,7 +35,7 @@ def test_changed_take_gives_fresh_latents(tmp_path):
     prepare(tmp_path / "root", tmp_path / "cache", progress=False)
     cache = open_cache(tmp_path / "cache")
     encoder = SpeechLatentEncoder.from_run(tmp_path / "speech")
-    after = encoder.encode_split(cache, "test")
+    after = encode_split(encoder, cache, "test")
     split = cache.split("test")
     fresh = encoder.encode_windows(split.fbank, renormalise=(cache.stats["fbank_mean"], cache.stats["fbank_std"]))
     assert np.array_equal(after.emotion, fresh.emotion)

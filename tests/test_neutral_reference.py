@@ -13,7 +13,8 @@ from emogesture.cli.main import main
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.neutral_reference import NeutralReference
-from emogesture.pipeline.perception import fit_perception, heard_probabilities, perceive
+from emogesture.pipeline.perception import heard_probabilities, perceive
+from emogesture.train.perception import fit_perception
 from emogesture.pipeline.speech import EncodedWindows
 
 NEUTRAL = EMOTIONS.index("neutral")
@@ -151,7 +152,7 @@ def test_generate_suggests_a_reference_only_for_its_own_emotion_of_an_unfamiliar
                                                                                         one_thread):
     from emogesture.pipeline.animate import NEUTRAL_HINT, AnimationRequest, animate
     from emogesture.pipeline.generate import GesturePipeline
-    from emogesture.pipeline.perception import PerceivedEmotion
+    from emogesture.pipeline.perception_report import PerceivedEmotion
 
     pipe = GesturePipeline.from_run(None, device="cpu")
     talk = DEMO_CLIPS / "talk.flac"

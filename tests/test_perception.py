@@ -7,8 +7,9 @@ import pytest
 
 from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
-from emogesture.pipeline.perception import (EmotionPerception, auto_emotion, auto_style, fit_perception, log_softmax,
-                                            perceive)
+from emogesture.models.perception import EmotionPerception, log_softmax
+from emogesture.pipeline.perception import auto_emotion, auto_style, perceive
+from emogesture.train.perception import fit_perception
 from emogesture.pipeline.speech import EncodedWindows
 
 
@@ -145,15 +146,23 @@ def test_the_temperature_makes_the_read_outs_confidence_its_accuracy_and_changes
     right = (after.argmax(1) == held_labels[inside]).mean()
     assert abs(np.exp(after.max(1)).mean() - right) < 0.05 < np.exp(before.max(1)).mean() - right
     # stored with the calibration; a calibration from before the temperature reads as 1
-    d = tempered.to_dict()
-    assert EmotionPerception.from_dict(d).temperature == tempered.temperature
-    del d["temperature"]
-    assert EmotionPerception.from_dict(d).temperature == 1.0
+    record, tensors = tempered.to_state()
+    assert EmotionPerception.from_state(record, tensors).temperature == tempered.temperature
+    del record["temperature"]
+    assert EmotionPerception.from_state(record, tensors).temperature == 1.0
 
 
 def test_round_trip_and_refusals():
     p, train, held = fitted(10)
-    q = EmotionPerception.from_dict(p.to_dict())
+    record, tensors = p.to_state()
+    assert not any(isinstance(v, list) and len(v) > 8 for r in (record["emotion"], record["voice"]) for v in r.values())
+    assert {k.split(".", 1)[0] for k in tensors} == {"emotion_perception"}
+    # a file written when the arrays were kept in the JSON reads the same
+    old = {**record, **{part: {**record[part], **{k: tensors[f"emotion_perception.{part}.{k}"].tolist()
+                                                  for k in ("means", "axes", "variances")}}
+                        for part in ("emotion", "voice")}}
+    assert np.array_equal(EmotionPerception.from_state(old, {}).emotion.axes, p.emotion.axes)
+    q = EmotionPerception.from_state(*p.to_state())
     assert np.allclose(q.trust(held, held + 1.0), p.trust(held, held + 1.0))
     assert q.voice.threshold == p.voice.threshold
     labels = np.repeat(np.arange(8), 10)
@@ -167,7 +176,7 @@ def test_calibration_refuses_a_split_the_model_trained_on(tmp_path):
     from emogesture.data.prepare import PrepareConfig
     from emogesture.errors import InputFileError
     from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
-    from emogesture.pipeline.perception import calibrate_perception_run
+    from emogesture.train.perception import calibrate_perception_run
 
     cfg = SpeechModelConfig.preset("tiny", num_speakers=2)
     save_model(tmp_path / "speech", "speech", SpeechDisentangler(cfg), cfg, {
@@ -202,7 +211,7 @@ def test_real_voices_emotions_get_their_own_means_beside_the_corpus():
     inside = held[plain.emotion.nearest(held) <= plain.emotion.threshold][:20]
     assert (both.read(inside, np.zeros((len(inside), 8))).argmax(1)
             == plain.read(inside, np.zeros((len(inside), 8))).argmax(1)).mean() >= 0.95
-    q = EmotionPerception.from_dict(both.to_dict())
+    q = EmotionPerception.from_state(*both.to_state())
     assert np.allclose(q.read(other, flat), both.read(other, flat))
 
 
@@ -227,19 +236,19 @@ def test_telephone_band_means_change_what_is_heard_and_nothing_else():
     inside = held[plain.emotion.nearest(held) <= plain.emotion.threshold][:20]
     assert (both.read(inside, np.zeros((len(inside), 8))).argmax(1)
             == plain.read(inside, np.zeros((len(inside), 8))).argmax(1)).mean() >= 0.95
-    q = EmotionPerception.from_dict(both.to_dict())
+    q = EmotionPerception.from_state(*both.to_state())
     assert np.allclose(q.read(heard, flat), both.read(heard, flat))
-    assert EmotionPerception.from_dict(plain.to_dict()).band_means is None
-    broken = both.to_dict()
+    assert EmotionPerception.from_state(*plain.to_state()).band_means is None
+    broken, tensors = both.to_state()
     broken["band_labels"] = broken["band_labels"][:-1]
     with pytest.raises(EmogestureError, match="7 telephone-band labels for telephone-band means of shape"):
-        EmotionPerception.from_dict(broken)
+        EmotionPerception.from_state(broken, tensors)
 
 
 def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp_path, monkeypatch):
     from emogesture.assets import bundled_model_file
     from emogesture.data import real_speech
-    from emogesture.pipeline.perception import calibrate_perception_run, real_voice_latents
+    from emogesture.train.perception import calibrate_perception_run, real_voice_latents
     from emogesture.pipeline.speech import SpeechLatentEncoder
 
     t = np.arange(20 * 16000) / 16000
@@ -260,7 +269,7 @@ def test_telephone_band_latents_hear_every_take_of_the_split_through_the_band(tm
     import soundfile as sf
 
     from emogesture.assets import bundled_model_file
-    from emogesture.pipeline.perception import telephone_band_latents
+    from emogesture.train.perception import telephone_band_latents
     from emogesture.pipeline.speech import SpeechLatentEncoder
 
     t = np.arange(20 * 16000) / 16000

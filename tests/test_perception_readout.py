@@ -5,7 +5,7 @@ and summing it with the head's log-probabilities lets either decide where the ot
 import numpy as np
 
 from emogesture.data.beat import EMOTIONS
-from emogesture.pipeline.perception import EmotionPerception, LatentRange
+from emogesture.models.perception import EmotionPerception, LatentRange
 
 from helpers import experiment_module
 

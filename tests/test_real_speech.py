@@ -166,7 +166,7 @@ def test_the_list_readers_decode_clip_by_clip(tmp_path):
     """One letter reader and the word readers of each file format (Ogg Vorbis, WAV, Opus): whole, speech; the
     word readers, a validation set, are never a calibration's voices."""
     from emogesture.data.real_speech import TRAINING_VOICES, WORD_READERS, load_voice, real_voice
-    from emogesture.pipeline.perception import calibrate_perception_run
+    from emogesture.train.perception import calibrate_perception_run
 
     for name in ("letters_ar", "words_en", "words_fr", "words_nn"):
         wave = load_voice(real_voice(name))

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import torch
 
-from emogesture.checkpoints import file_sha256, load_model, read_meta, save_model, write_text_atomic
+from emogesture.checkpoints import file_sha256, load_model, read_meta, save_model, trained_with, write_text_atomic
 from emogesture.errors import InputFileError, OutputExistsError
 
 CHECKSUMS = "SHA256SUMS"
@@ -59,10 +59,11 @@ def bundle_models(speech: str | PathLike[str], gesture: str | PathLike[str], ext
     out.mkdir(parents=True, exist_ok=True)
     s = load_model(speech, "speech")
     g = load_model(gesture, "gesture")
-    if g.metadata.speech_weights_sha256 != s.meta["weights_sha256"]:
+    if not g.metadata.speech_weights_sha256 or not trained_with(g, s):
         raise InputFileError(s.path, f"is not the speech model {g.path} was trained with")
     settings = g.generation.with_overrides(list(generation))
-    save_model(out, "speech", s.model, s.config, s.metadata, name="speech", weights_dtype=weights_dtype)
+    save_model(out, "speech", s.model, s.config, s.metadata, name="speech", weights_dtype=weights_dtype,
+               tensors=s.tensors)
     speech_sha = read_meta(out, "speech", "speech")["weights_sha256"]
     metadata = g.metadata.replace(speech_model="speech.json", speech_weights_sha256=speech_sha)
     save_model(out, "gesture", g.model, g.config, metadata, name="gesture", weights_dtype=weights_dtype,

@@ -12,13 +12,14 @@ import hashlib
 import json
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
 from typing import Any
 
-from safetensors import SafetensorError
+import numpy as np
 import torch
+from safetensors import SafetensorError
 from safetensors import safe_open
 from safetensors.torch import save_file
 from torch import nn
@@ -33,6 +34,8 @@ from emogesture.models.metadata import ModelMetadata, metadata_of
 FORMAT = "emogesture-model"
 FORMAT_VERSION = 2
 READABLE_VERSIONS = (1, 2)  # 1: before the content checksum (read without it)
+#: names of the arrays a weights file may store beside the network's (save_model's ``tensors``)
+STORED_ARRAY_PREFIXES = ("emotion_perception.",)
 
 
 @dataclass
@@ -74,6 +77,8 @@ class LoadedModel:
     path: Path
     #: how a gesture model generates (the ``generation`` section of its JSON); None for other kinds
     generation: GenerationConfig | None = None
+    #: arrays the weights file stores beside the network's (a calibration's, by name: :func:`save_model`)
+    tensors: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def file_sha256(path: Path) -> str:
@@ -157,13 +162,17 @@ def save_model(
     overwrite: bool = True,
     weights_dtype: torch.dtype | None = None,
     generation: GenerationConfig | None = None,
+    tensors: dict[str, np.ndarray] | None = None,
 ) -> Path:
     """Write ``model``'s weights and ``{kind, config, extra, version}``; returns the JSON path.
 
     ``metadata`` (a :class:`ModelMetadata` of ``kind``, or its fields as a mapping: normalisation
     statistics, label names, per-class mean latents, ...) is stored as the ``extra`` section; ``generation``, a gesture model's generation
     settings. ``weights_dtype`` (e.g. ``torch.float16``) stores floating-point
-    tensors in that type (they are cast back to the model's type when loaded).
+    tensors in that type (they are cast back to the model's type when loaded). ``tensors``: arrays stored
+    in the weights file beside the network's, as they are (a calibration's, e.g. the emotion perception's
+    ``emotion_perception.*``; their names must begin with a prefix of :data:`STORED_ARRAY_PREFIXES`); a
+    load gives them back in :attr:`LoadedModel.tensors`.
 
     The pair is replaced as one: the new weights go to a hidden pending file first, then the JSON (which
     names their checksum) replaces the old one — the moment the new model exists — and only then do the
@@ -180,6 +189,10 @@ def save_model(
     state = {k: v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     if weights_dtype is not None:
         state = {k: v.to(weights_dtype) if v.is_floating_point() else v for k, v in state.items()}
+    for key, array in (tensors or {}).items():
+        if not key.startswith(STORED_ARRAY_PREFIXES) or key in state:
+            raise ValueError(f"stored array {key!r}: its name must begin with one of {STORED_ARRAY_PREFIXES}")
+        state[key] = torch.from_numpy(np.ascontiguousarray(array))
     pending = pending_weights(weights)
     # one metadata key only: safetensors writes a dict's keys in an order that changes from run to run,
     # and the same weights must give the same bytes (and checksum)
@@ -286,7 +299,7 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
     except (RuntimeError, ValueError, TypeError, AttributeError) as e:
         raise InputFileError(meta_path, f"invalid stored config: the model cannot be built from it "
                              f"({str(e).splitlines()[0] if str(e) else e.__class__.__name__})") from None
-    missing, unexpected = _load_weights(model, weights)
+    missing, unexpected, tensors = _load_weights(model, weights)
     optional = getattr(model, "optional_state_keys", ())
     if [k for k in missing if k not in optional] or unexpected:
         missing = [k for k in missing if k not in optional]
@@ -304,7 +317,7 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         model.to(device).eval()
     except torch.cuda.OutOfMemoryError:
         raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
-    return LoadedModel(model, config, metadata, meta, meta_path, generation)
+    return LoadedModel(model, config, metadata, meta, meta_path, generation, tensors)
 
 
 def _stored_configs(kind: str, meta: dict) -> tuple[Any, GenerationConfig | None]:
@@ -333,15 +346,17 @@ def _left_empty(model: nn.Module) -> list[str]:
     return [name for name, t in [*model.named_parameters(), *model.named_buffers()] if t.is_meta]
 
 
-def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]]:
+def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str], dict[str, np.ndarray]]:
     """Load a safetensors file into ``model`` (built on the meta device: the file's tensors, cast to the
     model's types, become its parameters and buffers) one top-level part at a time (the speech model's three
     encoders one after another), so that loading holds the model plus one part, not the model twice:
     loading the paper speech model peaked at 2.1 GiB instead of 2.8. Returns the keys missing from the
     file and those it has that the model lacks; a corrupt file or one that does not fit is an
     :class:`InputFileError`. The model is still on the CPU here (``load_model`` moves it afterwards), so
-    a device's own errors (a GPU out of memory, a missing ``cuda:N``) are never read as a bad file."""
+    a device's own errors (a GPU out of memory, a missing ``cuda:N``) are never read as a bad file. The
+    arrays stored beside the network's (:data:`STORED_ARRAY_PREFIXES`) come back as a third value."""
     parts: dict[str, list[str]] = {}
+    stored: dict[str, np.ndarray] = {}
     dtypes = {k: v.dtype for k, v in model.state_dict().items()}
     missing: set[str] | None = None
     unexpected: list[str] = []
@@ -349,7 +364,10 @@ def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]
         stamp = _file_stamp(weights)
         with safe_open(str(weights), framework="pt", device="cpu") as f:
             for key in f.keys():
-                parts.setdefault(key.split(".", 1)[0], []).append(key)
+                if key.startswith(STORED_ARRAY_PREFIXES):
+                    stored[key] = f.get_tensor(key).numpy()
+                else:
+                    parts.setdefault(key.split(".", 1)[0], []).append(key)
         for keys in parts.values() or [[]]:
             # the file is mapped into memory while open, and the pages read count as the process's
             # own: opened again for each part, only one part's pages are mapped at a time
@@ -370,7 +388,7 @@ def _load_weights(model: nn.Module, weights: Path) -> tuple[list[str], list[str]
     except RuntimeError as e:
         detail = next((ln.strip() for ln in str(e).splitlines() if "size mismatch" in ln), "shapes differ")
         raise InputFileError(weights, f"weights do not fit the stored config ({detail.rstrip('.')})") from None
-    return sorted(missing or ()), unexpected
+    return sorted(missing or ()), unexpected, stored
 
 
 def _file_stamp(path: Path) -> tuple[int, int, int]:
@@ -401,6 +419,15 @@ def refuse_trained_split(split: str, *models: LoadedModel, purpose: str = "evalu
         if split in used:
             raise InputFileError(m.path, f"was trained on the {split} split ({'+'.join(used)}); {purpose} on "
                                  "windows no part of the model saw")
+
+
+def trained_with(gesture: LoadedModel, speech: LoadedModel) -> bool:
+    """Whether ``gesture`` was trained on ``speech``'s network: it names the checksum of ``speech``'s weights file,
+    or of the file a perception calibration copied ``speech`` from (the calibration adds its arrays to the file);
+    True for a gesture model that names none."""
+    want = gesture.metadata.speech_weights_sha256
+    calibrated_from = ((speech.metadata.emotion_perception or {}).get("info") or {}).get("calibrated_from")
+    return not want or want in (speech.meta["weights_sha256"], calibrated_from)
 
 
 def calibration_splits(loaded: LoadedModel) -> dict[str, str]:

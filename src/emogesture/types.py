@@ -8,6 +8,10 @@ import numpy as np
 
 NUM_JOINTS = 55
 FPS = 30
+#: the eight emotions of BEAT2, in its label order
+EMOTIONS: tuple[str, ...] = (
+    "neutral", "happiness", "anger", "sadness", "contempt", "surprise", "fear", "disgust",
+)
 
 
 @dataclass

@@ -167,7 +167,7 @@ def run_calibrate_gesture(args: argparse.Namespace) -> int:
 
 
 def run_calibrate_speech(args: argparse.Namespace) -> int:
-    from emogesture.pipeline.perception import calibrate_perception_run
+    from emogesture.train.perception import calibrate_perception_run
 
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite,
                                  real_voices=args.real_voices, telephone_means=args.telephone_means)

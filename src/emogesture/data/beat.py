@@ -18,10 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from emogesture.errors import InputFileError
+from emogesture.types import EMOTIONS  # noqa: F401  (the emotions' home is types; read here by the data code)
 
-EMOTIONS: tuple[str, ...] = (
-    "neutral", "happiness", "anger", "sadness", "contempt", "surprise", "fear", "disgust",
-)
 # Inclusive take-id ranges of each emotion for speech takes (type 0), in EMOTIONS order.
 EMOTION_TAKE_RANGES: tuple[tuple[int, int], ...] = (
     (1, 64), (65, 72), (73, 80), (81, 86), (87, 94), (95, 102), (103, 110), (111, 118),

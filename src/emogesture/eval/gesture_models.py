@@ -33,13 +33,8 @@ from emogesture.eval.rhythm import (
 from emogesture.eval import sources as src
 from emogesture.eval.seams import (BOUNDARY_MARGIN_S, SEAM_CANDIDATES, long_audio_check, long_audio_ground_truth,
                                    long_audio_stretches, whole_take_seams)
-from emogesture.pipeline.conditions import (
-    emotion_label_edit,
-    generate_from_conditions,
-    model_conditions,
-    reconstruct_motion,
-    window_seeds,
-)
+from emogesture.eval.split_latents import model_conditions
+from emogesture.pipeline.sampling import emotion_label_edit, generate_from_conditions, reconstruct_motion, window_seeds
 from emogesture.pipeline.generate import GesturePipeline
 from emogesture.pipeline.perception import auto_emotion, auto_style, fallback_style_of, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder

@@ -24,6 +24,7 @@ from emogesture.eval.plots import save_confusion_matrix
 from emogesture.eval.probes import linear_probe_accuracy
 from emogesture.models.speech_losses import SpeechLossConfig, speech_losses
 from emogesture.pipeline.perception import perception_of
+from emogesture.eval.split_latents import encode_split
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_emotion", "XSty": "cross_style"}
@@ -147,7 +148,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
     split_info = split_use(split, {"speech": encoder.loaded})
     cache = open_cache(cache_dir)
     test = cache.split(split)
-    enc = encoder.encode_split(cache, split)
+    enc = encode_split(encoder, cache, split)
     emo_rep = classification_report(test.emotion, enc.emotion_logits.argmax(1), len(EMOTIONS))
     perception = perception_of(encoder)  # a calibrated model: the emotion as generate hears it, beside the head's
     heard = (None if perception is None else
@@ -161,7 +162,7 @@ def evaluate_speech(run: Path, cache_dir: Path, split: str = "test", out_dir: Pa
 
     # linear probes: fit on (a seeded subset of) training windows, score on the split
     train = cache.split("train")
-    tr_enc = encoder.encode_split(cache, "train")
+    tr_enc = encode_split(encoder, cache, "train")
     rng = np.random.default_rng(seed)
     sub = np.sort(rng.permutation(len(train))[:probe_train_windows])
     probes = {}

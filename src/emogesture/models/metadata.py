@@ -59,7 +59,7 @@ class ModelMetadata:
 @dataclass
 class SpeechMetadata(ModelMetadata):
     """A speech model's: its training speakers, the fbank normalisation, how its cache was prepared and,
-    once calibrated, its emotion perception (:class:`emogesture.pipeline.perception.EmotionPerception`)."""
+    once calibrated, its emotion perception (:class:`emogesture.models.perception.EmotionPerception`; its arrays are tensors of the weights file)."""
 
     kind: ClassVar[str] = "speech"
     speakers: list[int] | None = None

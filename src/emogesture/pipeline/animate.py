@@ -24,17 +24,17 @@ import numpy as np
 from tqdm import tqdm
 
 from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
-from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
 from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, parse_formats
 from emogesture.fileio import atomic_output, check_output
 from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.neutral_reference import MIN_SECONDS, reference_name
-from emogesture.pipeline.perception import PerceivedEmotion, auto_emotion, perception_of
+from emogesture.pipeline.perception import auto_emotion, perception_of
+from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.postprocess import candidates_drawn
 from emogesture.pipeline.timeline import EmotionTimeline, is_timeline
-from emogesture.types import SMPLXSequence
+from emogesture.types import EMOTIONS, SMPLXSequence
 
 __all__ = ["AnimationRequest", "AnimationResult", "animate", "emotion_request"]
 
@@ -73,7 +73,7 @@ class AnimationRequest:
     """What to animate and where to write it; checked when made (:meth:`validate`).
 
     ``emotion``: ``auto`` (the speech's own emotion, blended toward neutral where the voice is unlike the
-    training voices), ``own`` (as heard), a label of :data:`~emogesture.data.beat.EMOTIONS` to animate
+    training voices), ``own`` (as heard), a label of :data:`~emogesture.types.EMOTIONS` to animate
     instead, or a timeline of keyframes ``"0:neutral,12:anger,30:sadness@0.5"``
     (:mod:`emogesture.pipeline.timeline`). ``emotion_weight``: 0..1 between the speech's own emotion (0) and the label or the
     ``emotion_from`` recording (1); None means 1, and a weight without either target is an error.

@@ -25,18 +25,18 @@ import torch
 
 from emogesture.assets import bundled_model_file
 from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity
-from emogesture.checkpoints import LoadedModel, load_model
+from emogesture.checkpoints import LoadedModel, load_model, trained_with
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.models.speech import LATENT_PARTS
 from emogesture.models.generation import GenerationConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
-from emogesture.pipeline.conditions import decode_latents, sample_latents
+from emogesture.pipeline.sampling import decode_latents, sample_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, settle_quiet_windows, stitch)
 from emogesture.pipeline.neutral_reference import NeutralReference, check_reference, reference_name
-from emogesture.pipeline.perception import (PerceivedEmotion, auto_emotion, auto_style, fallback_style_of, perceive,
-                                            perception_of)
+from emogesture.pipeline.perception import auto_emotion, auto_style, fallback_style_of, perceive, perception_of
+from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.pipeline.timeline import EmotionTimeline, timeline_latents
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
@@ -103,8 +103,7 @@ class GesturePipeline:
             speech = SpeechLatentEncoder.from_run(speech_run, device, precision)
         else:
             speech = SpeechLatentEncoder.of_gesture_model(gesture, device, precision)
-        want = gesture.metadata.speech_weights_sha256
-        if want and speech.loaded.meta["weights_sha256"] != want:
+        if not trained_with(gesture, speech.loaded):
             raise InputFileError(speech.loaded.path, "is not the speech model this gesture model was trained with")
         pipe = cls(gesture, speech, device, precision)
         hold_bf16_weights(pipe.precision, pipe.model.denoiser, pack=True)

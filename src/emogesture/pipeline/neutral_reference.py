@@ -39,7 +39,7 @@ import numpy as np
 
 from emogesture.audio import TARGET_SAMPLE_RATE, check_speech
 from emogesture.errors import EmogestureError
-from emogesture.pipeline.perception import EmotionPerception
+from emogesture.models.perception import EmotionPerception
 from emogesture.pipeline.speech import EncodedWindows
 
 

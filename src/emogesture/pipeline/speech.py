@@ -18,7 +18,7 @@ from emogesture.audio.timing import timing_stream
 from emogesture.audio.wave_augment import voice_shift
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
-from emogesture.data.cache import WindowsCache
+from emogesture.models.perception import EmotionPerception
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
 from emogesture.runtime import StageTimes, autocast, bf16_weights, hold_bf16_weights, maybe_stage, resolve_precision
 
@@ -83,6 +83,9 @@ class SpeechLatentEncoder:
         self.window_frames = loaded.config.encoder.input_frames
         self.noise_suppression: NoiseSuppression | None = NoiseSuppression()
         self.fill_digital_silence = True
+        #: the emotion perception its file stores (None: never calibrated; :mod:`emogesture.models.perception`)
+        self.perception = (EmotionPerception.from_state(meta.emotion_perception, loaded.tensors)
+                           if meta.emotion_perception else None)
 
     @classmethod
     def from_run(cls, path: str | PathLike[str], device: str = "cpu", precision: str = "fp32") -> "SpeechLatentEncoder":
@@ -202,32 +205,6 @@ class SpeechLatentEncoder:
         fb = normalise_recording(fb, self.recording_norm)
         fb = normalise_fbank(fb, self.fbank_mean, self.fbank_std).numpy()
         return np.asarray(fbank_windows(fb, frames, self.window_frames))
-
-    def encode_split(self, cache: WindowsCache, split: str, batch_size: int | None = None) -> EncodedWindows:
-        """Latents of every window of a prepared split, cached in the windows cache's ``latents/`` folder
-        (never next to the model: the bundled model lives inside the installed package).
-
-        The cache file is keyed by what the latents depend on: the model's weights checksum, the cache's
-        statistics digest and a digest of the split's filterbank windows themselves, so a changed model
-        or re-prepared windows (a rebuilt corpus, one changed take) are never served stale latents.
-        """
-        windows = cache.split(split)
-        key = f"{self.loaded.meta['weights_sha256'][:12]}_{cache.manifest['digest']}_{split}_{array_digest(windows.fbank)}"
-        if self.precision != "fp32":
-            key += f"_{self.precision}"
-        device = torch.device(self.device).type
-        if device != "cpu":  # another device's float32 differs in the last bits
-            key += f"_{device}"
-        path = Path(cache.root) / "latents" / f"{key}.npz"
-        if path.is_file():
-            with np.load(path) as z:
-                return EncodedWindows(*(z[k] for k in EncodedWindows.stored))
-        enc = self.encode_windows(windows.fbank, batch_size,
-                                  renormalise=(cache.stats["fbank_mean"], cache.stats["fbank_std"]))
-        from emogesture.motion import write_npz_atomic
-
-        write_npz_atomic(path, {k: getattr(enc, k) for k in EncodedWindows.stored}, overwrite=True)
-        return enc
 
 
 def array_digest(array: np.ndarray, rows: int = 64) -> str:

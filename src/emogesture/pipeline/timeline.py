@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from emogesture.data.beat import EMOTIONS
 from emogesture.errors import EmogestureError
+from emogesture.types import EMOTIONS
 
 OWN_MODES = ("auto", "own")
 

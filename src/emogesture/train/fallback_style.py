@@ -6,7 +6,7 @@ gesture model is never asked to extrapolate. *Which* speaker decides how the ani
 training speakers' motion styles differ widely, and on the same real recording (the bundled model of
 corpus version 6, neutral emotion) their mean styles put a hand in front of the chest in 5–81 % of the
 frames. The speaker whose style latent lies nearest the centre of the voices (the speech model's own
-choice, :meth:`~emogesture.pipeline.perception.EmotionPerception.typical_speaker`) says nothing about
+choice, :meth:`~emogesture.models.perception.EmotionPerception.typical_speaker`) says nothing about
 their gestures, and there it was one with the arms hanging (8 %).
 
 So the gesture model keeps its own *fallback style*, chosen on held-out windows (``val``) by motion. An
@@ -39,7 +39,8 @@ from emogesture.eval.motion_stats import hands_in_front, wrist_distance
 from emogesture.eval.real_speech import FRONT_SHARE_TOLERANCE, WRIST_DISTANCE_TOLERANCE
 from emogesture.motion import MotionFeatureSpec
 from emogesture.motion.body import SkeletonBody
-from emogesture.pipeline.conditions import generate_from_conditions, model_conditions, window_seeds
+from emogesture.eval.split_latents import encode_split, model_conditions
+from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 #: Held-out windows generated per candidate speaker (evenly spaced through the split): enough for the
@@ -50,7 +51,7 @@ FALLBACK_WINDOWS = 96
 def speaker_style_means(speech: SpeechLatentEncoder, cache: WindowsCache) -> dict[int, np.ndarray]:
     """Each training speaker's mean style latent ``[D]`` over the train split's windows, by speaker id."""
     train = cache.split("train")
-    style = speech.encode_split(cache, "train").style
+    style = encode_split(speech, cache, "train").style
     return {int(k): style[train.speaker_id == k].mean(0).astype(np.float32) for k in np.unique(train.speaker_id)}
 
 

@@ -8,7 +8,7 @@ units and not comparable with ε-runs); (3) without gradient, the full DDIM loop
 with the current Δ -> z̃, then m̃ = P_D(z̃) WITH gradient: L_align, L_Valign against m.
 The audio model is frozen: c, e, s are computed once per window by the speech run and cached.
 When training ends, a model with ``generation.residual_scale > 0`` (tiny) measures its residual-noise
-calibration on the cache's validation windows (:func:`emogesture.pipeline.conditions.calibrate_residual`).
+calibration on the cache's validation windows (:func:`emogesture.pipeline.sampling.calibrate_residual`).
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from emogesture.models.metadata import GestureMetadata
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
 from emogesture.motion.skeleton import FINGER_JOINTS, WRIST_JOINTS
-from emogesture.pipeline.conditions import calibrate_residual, model_conditions, window_conditions
+from emogesture.eval.split_latents import model_conditions, window_conditions
+from emogesture.pipeline.sampling import calibrate_residual
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
 

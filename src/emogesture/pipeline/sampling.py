@@ -1,10 +1,11 @@
-"""Condition latents and motion of whole cache splits, for training and evaluating gesture models.
+"""Sampling: motion latents drawn by the denoiser for condition windows, decoded to motion features.
 
 A gesture model is conditioned on ``(c, e, s)`` from the frozen speech model, or, in the ``no_audio``
-ablation, on one latent ``m`` from its own MFCC autoencoder. These helpers compute the conditions of
-every window of a prepared split, generate motion for them (optionally with an emotion edit by label),
-and reconstruct the ground truth through the motion prior. They serve the trainer (conditions) and
-the evaluation (generation, reconstruction) alike.
+ablation, on one latent ``m`` from its own MFCC autoencoder. These functions draw the motion latents of a
+batch of condition windows (DDIM, with the generation settings' guidance and residual noise), decode them
+through the motion prior, generate motion for whole condition arrays (optionally with an emotion edit by
+label) and reconstruct ground truth through the prior. ``generate`` and the evaluation share them; the
+conditions of a prepared split's windows are :mod:`emogesture.eval.split_latents`.
 """
 
 from __future__ import annotations
@@ -15,12 +16,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from emogesture.audio import mfcc_from_log_mel
-from emogesture.audio.timing import TIMING_FEATURES, timing_stream
+from emogesture.audio.timing import TIMING_FEATURES
 from emogesture.checkpoints import LoadedModel
 from emogesture.config import from_dict
-from emogesture.data.beat import EMOTIONS
-from emogesture.data.cache import WindowsCache
 from emogesture.diffusion.residual import residual_factor
 from emogesture.diffusion.sampling import ddim_sample, make_generators
 from emogesture.diffusion.schedulers import make_ddim_scheduler
@@ -28,40 +26,8 @@ from emogesture.errors import EmogestureError
 from emogesture.models.generation import GenerationConfig
 from emogesture.motion import MotionFeatureSpec
 from emogesture.pipeline.postprocess import add_residual, filter_output, guide_timing
-from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.runtime import autocast, bf16_weights, refuse_held_weights
-
-
-def mfcc_windows(fbank_windows, fbank_mean: float, fbank_std: float, batch: int = 256) -> np.ndarray:
-    """Cached normalised fbank windows ``[W, 1024, n_mels]`` -> flattened pooled MFCCs ``[W, 13 * 128]``."""
-    out = []
-    for i in range(0, len(fbank_windows), batch):
-        x = torch.from_numpy(np.asarray(fbank_windows[i : i + batch], np.float32)) * (2 * fbank_std) + fbank_mean
-        out.append(mfcc_from_log_mel(x, 13, time_pool=8).flatten(1).numpy())
-    return np.concatenate(out)
-
-
-def window_conditions(variant: str, cache: WindowsCache, split: str,
-                      speech: SpeechLatentEncoder | None, timing: bool = False) -> list[np.ndarray]:
-    """Raw condition arrays of every window of a split: ``[c, e, s]`` latents ``[W, 256]`` each, or
-    ``[mfcc [W, 13 * 128]]`` for the ``no_audio`` variant (its autoencoder runs inside the model);
-    ``timing``: followed by the windows' timing stream ``[W, T, 2]`` (:func:`timing_stream`)."""
-    w = cache.split(split)
-    if variant == "no_audio":
-        return [mfcc_windows(w.fbank, cache.stats["fbank_mean"], cache.stats["fbank_std"])]
-    if speech is None:
-        raise EmogestureError(f"variant {variant} needs a speech model for its conditions")
-    enc = speech.encode_split(cache, split)
-    out = [enc.content, enc.emotion, enc.style]
-    if timing:
-        out.append(timing_stream(w.fbank, frames=int(w.motion.shape[1])))
-    return out
-
-
-def model_conditions(gesture: LoadedModel, cache: WindowsCache, split: str,
-                     speech: SpeechLatentEncoder | None) -> list[np.ndarray]:
-    """:func:`window_conditions` of what ``gesture`` takes (its variant, its timing stream if any)."""
-    return window_conditions(gesture.config.variant, cache, split, speech, timing=gesture.config.hears_timing)
+from emogesture.types import EMOTIONS
 
 
 def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
