@@ -84,31 +84,6 @@ def test_windows_own_jumps_keep_the_faster_window_where_two_overlap():
     assert windows_own_jumps(jumps, [0, 2], 5).tolist() == [1.0, 1.0, 2.0, 1.0]  # cut to the timeline
 
 
-def test_joint_difference_loss_scores_speed_not_direction():
-    import torch
-
-    from emogesture.train.gesture import joint_difference_loss
-
-    g = torch.Generator().manual_seed(0)
-    path = torch.randn(2, 30, 4, 3, generator=g).cumsum(1) * 0.01  # metres
-    turned = path * torch.tensor([-1.0, 1.0, -1.0])  # the same strokes in other directions
-    assert joint_difference_loss(turned, path, 100.0).item() < 1e-6
-    slow, still = path * 0.5, path[:, :1].expand_as(path)
-    assert 0 < joint_difference_loss(slow, path, 100.0) < joint_difference_loss(still, path, 100.0)
-    jitter = path + 0.01 * torch.randn(path.shape, generator=g)  # fast, but not the motion's speed
-    assert joint_difference_loss(jitter, path, 100.0) > joint_difference_loss(slow, path, 100.0)
-    assert joint_difference_loss(turned, path, 100.0, order=2).item() < 1e-6
-    t = torch.arange(60.0) / 30
-    strokes = torch.stack([0.1 * torch.sin(3 * torch.pi * t), 0.05 * torch.cos(2 * torch.pi * t), 0 * t], -1)[None, :, None]
-    shaking = strokes + 0.004 * (-1) ** torch.arange(60.0)[None, :, None, None] * torch.tensor([0, 0, 1.0])
-    # shaking by 4 mm barely changes the speeds but not the accelerations; larger strokes the other way round
-    assert joint_difference_loss(shaking, strokes, 100.0, 2) > 5 * joint_difference_loss(shaking, strokes, 100.0, 1)
-    assert joint_difference_loss(1.5 * strokes, strokes, 100.0, 1) > 5 * joint_difference_loss(1.5 * strokes, strokes, 100.0, 2)
-    resting = still.clone().requires_grad_()  # zero speeds: a finite gradient (zero, from exact rest)
-    joint_difference_loss(resting, path, 100.0).backward()
-    assert torch.isfinite(resting.grad).all()
-
-
 def test_model_info_gesture_prints_the_paper_counts(capsys):
     import torch
 
@@ -123,46 +98,6 @@ def test_model_info_gesture_prints_the_paper_counts(capsys):
         assert f"{counts[name]:,}" in text
     assert 17e6 < counts["prior"] < 19e6 and 80e6 < counts["denoiser"] < 90e6
     assert "50 DDIM steps" in text
-
-
-@pytest.mark.parametrize("group", ["finger", "wrist"])
-def test_joint_group_weights_weigh_only_their_joints_in_the_feature_loss(group):
-    import torch
-
-    from emogesture.config import to_dict
-    from emogesture.errors import ConfigError
-    from emogesture.motion import MotionFeatureSpec
-    from emogesture.motion.skeleton import FINGER_JOINTS, JOINT_NAMES, WRIST_JOINTS
-    from emogesture.train.gesture import GestureModule, GestureTrainConfig
-
-    assert len(FINGER_JOINTS) == 30 and {JOINT_NAMES[j].split("_")[0] for j in FINGER_JOINTS} == {"left", "right"}
-    assert [JOINT_NAMES[j] for j in WRIST_JOINTS] == ["left_wrist", "right_wrist"]
-    spec = MotionFeatureSpec()
-    cols = {j: slice(6 * k, 6 * k + 6) for k, j in enumerate(spec.joints)}
-    option = f"{group}_features"
-    weighted, other = (FINGER_JOINTS, WRIST_JOINTS) if group == "finger" else (WRIST_JOINTS, FINGER_JOINTS)
-
-    def module(weight: float) -> GestureModule:
-        cfg = GestureTrainConfig.preset("tiny")
-        setattr(cfg.losses, option, weight)
-        return GestureModule(to_dict(cfg), [0.0] * spec.dim, [1.0] * spec.dim, to_dict(spec))
-
-    plain, changed = module(1.0), module(0.1 if group == "finger" else 8.0)
-    scale = getattr(changed.cfg.losses, option)
-    g = torch.Generator().manual_seed(0)
-    target = torch.randn(2, 8, spec.dim, generator=g)
-    cases = [(weighted[0], scale), (weighted[-1], scale), (other[0], 1.0), (JOINT_NAMES.index("right_elbow"), 1.0)]
-    for joint, factor in cases:
-        moved = target.clone()
-        moved[..., cols[joint]] += 0.5  # an error on one joint's features only
-        assert plain.feature_loss(moved, target).item() > 0
-        assert changed.feature_loss(moved, target).item() == pytest.approx(factor * plain.feature_loss(moved, target).item())
-    both = target + 0.5  # at 1 it is the plain smooth L1 mean
-    assert plain.feature_loss(both, target).item() == pytest.approx(torch.nn.functional.smooth_l1_loss(both, target).item())
-    cfg = GestureTrainConfig.preset("tiny")
-    setattr(cfg.losses, option, -1.0)
-    with pytest.raises(ConfigError, match=option):
-        cfg.__post_init__()
 
 
 def test_bf16_mixed_training_noises_float32_latents(monkeypatch):

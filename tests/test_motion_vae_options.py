@@ -25,48 +25,6 @@ def _assert_mu_reads(vae: MotionVAE, path: torch.nn.Linear) -> None:
     assert not torch.allclose(vae.encode(x, sample=False)[1], mu)
 
 
-def test_frames_per_token_groups_frames_and_keeps_every_length():
-    cfg = MotionVAEConfig.preset("tiny", frames=30)
-    cfg.frames_per_token, cfg.low_frequency_path = 5, 3
-    vae = MotionVAE(cfg).eval()
-    assert vae.encoder_pos.shape[1] == 2 + 6 and vae.encoder_input.in_features == 5 * 282
-    for t in (30, 23, 1):
-        x = torch.randn(2, t, 282, generator=_gen(t))
-        recon, z, mu, logvar = vae(x, sample=False)
-        assert recon.shape == (2, t, 282) and z.shape == (2, 256)
-    # a shorter window equals the full window padded with its last frame, cropped
-    x = torch.randn(1, 23, 282, generator=_gen(2))
-    padded = torch.cat([x, x[:, -1:].expand(1, 2, 282)], dim=1)
-    assert torch.allclose(vae.encode(x, sample=False)[1], vae.encode(padded, sample=False)[1], atol=1e-5)
-    z = torch.randn(1, 256, generator=_gen(3))
-    assert torch.allclose(vae.decode(z, frames=23), vae.decode(z, frames=25)[:, :23], atol=1e-6)
-    with pytest.raises(ConfigError, match="does not divide"):
-        MotionVAEConfig(frames=30, frames_per_token=7)
-
-
-def test_latent_tokens_split_z_into_distribution_and_memory_tokens():
-    cfg = MotionVAEConfig.preset("tiny", frames=30)
-    cfg.latent_tokens, cfg.low_frequency_path = 8, 0
-    vae = MotionVAE(cfg).eval()
-    assert vae.dist_tokens.shape[1] == 16 and vae.encoder_pos.shape[1] == 16 + 30
-    x = torch.randn(2, 30, 282, generator=_gen(0))
-    recon, z, mu, logvar = vae(x, sample=False)
-    assert recon.shape == x.shape and z.shape == mu.shape == logvar.shape == (2, 256)
-    # μ part k comes from distribution token k, log σ² part k from token 8 + k
-    captured = {}
-    vae.encoder.register_forward_hook(lambda mod, inp, out: captured.setdefault("y", out))
-    vae.encode(x, sample=False)
-    y = captured["y"]
-    assert torch.allclose(mu.reshape(2, 8, 32)[:, 3], vae.to_mu(y[:, 3]), atol=1e-6)
-    assert torch.allclose(logvar.reshape(2, 8, 32)[:, 5], vae.to_logvar(y[:, 13]), atol=1e-6)
-    # the decoder reads every part of z (changing one part changes the output)
-    z2 = z.clone()
-    z2[:, 32 * 7 :] += 1.0
-    assert not torch.allclose(vae.decode(z), vae.decode(z2))
-    with pytest.raises(ConfigError, match="does not divide"):
-        MotionVAEConfig(latent_tokens=3)
-
-
 def test_low_frequency_path_adds_dct_analysis_and_synthesis():
     cfg = MotionVAEConfig.preset("tiny", frames=30)
     cfg.low_frequency_path = 4
@@ -190,25 +148,3 @@ def test_output_lowpass_keeps_strokes_below_the_cutoff_and_removes_jitter_above_
         GenerationConfig(output_lowpass_hz=15.0)
     with pytest.raises(ConfigError, match="output_lowpass_hz"):
         GenerationConfig(output_lowpass_hz=-1.0)
-
-
-def test_decoder_smoothing_ends_the_decoder_in_training_and_generation():
-    from emogesture.motion.filters import gaussian_smooth
-
-    torch.manual_seed(0)
-    kw = dict(frames=40, width=32, layers=3, heads=2, ff_dim=64, dropout=0.0, latent_dim=32, low_frequency_path=4)
-    sharp = MotionVAE(MotionVAEConfig(**kw))
-    smooth = MotionVAE(MotionVAEConfig(**kw, decoder_smoothing=1.5))
-    torch.nn.init.normal_(sharp.low_frequency_out.weight)
-    torch.nn.init.normal_(sharp.decoder_output.weight)
-    smooth.load_state_dict(sharp.state_dict())
-    motion = torch.randn(2, 40, 282)
-    with torch.no_grad():
-        z = sharp.encode(motion, sample=False)[0]
-        torch.testing.assert_close(smooth.decode(z), gaussian_smooth(sharp.decode(z), 1.5))
-        rec, *_ = smooth(motion, sample=False)  # the training forward goes through it too
-        torch.testing.assert_close(rec, gaussian_smooth(sharp(motion, sample=False)[0], 1.5))
-    jitter = lambda x: (x[:, 2:] - 2 * x[:, 1:-1] + x[:, :-2]).abs().mean()  # noqa: E731
-    assert jitter(rec) < 0.5 * jitter(sharp.decode(z).detach())
-    with pytest.raises(ConfigError, match="decoder_smoothing"):
-        MotionVAEConfig(decoder_smoothing=-1)

@@ -6,7 +6,7 @@ import torch
 
 from emogesture.audio.timing import timing_stream
 from emogesture.eval import rhythm as R
-from emogesture.models.denoiser import DenoiserConfig, LatentDenoiser
+from emogesture.models.denoiser import DenoiserConfig
 from emogesture.errors import ConfigError
 
 W, T = 40, 300
@@ -107,25 +107,6 @@ def test_timing_stream_repeats_the_last_real_frame_past_the_audio():
         timing_stream(fbank, lengths=[998])
 
 
-def test_denoiser_timing_tokens_are_used_and_checked():
-    cfg = DenoiserConfig(width=32, layers=3, heads=2, ff_dim=32, dropout=0.0, timing_tokens=10)
-    assert cfg.num_tokens == 15 and cfg.num_inputs == 4
-    net = LatentDenoiser(cfg).eval()
-    z, t = torch.randn(2, 256), torch.tensor([5, 900])
-    conds = [torch.randn(2, 256) for _ in range(3)]
-    stream = torch.randn(2, 300, 2)
-    out = net(z, t, [*conds, stream])
-    assert out.shape == (2, 256)
-    assert not torch.allclose(out, net(z, t, [*conds, stream.roll(40, dims=1)]))  # the timing matters
-    with pytest.raises(ValueError, match="timing stream"):
-        net(z, t, conds)
-    with pytest.raises(ValueError, match="timing stream"):
-        net(z, t, [*conds, torch.randn(2, 150, 2)])
-    with pytest.raises(ConfigError):
-        DenoiserConfig(timing_tokens=7)
-    assert DenoiserConfig().num_tokens == 5  # the paper's denoiser is unchanged
-
-
 def test_a_decoder_that_reads_timing_starts_as_the_plain_one_and_checks_its_stream():
     from emogesture.models.gesture import GestureModelConfig
     from emogesture.models.motion_vae import MotionVAE, MotionVAEConfig
@@ -144,6 +125,6 @@ def test_a_decoder_that_reads_timing_starts_as_the_plain_one_and_checks_its_stre
         vae.decode(z)
     gm = GestureModelConfig.preset("tiny")
     gm.vae.timing_features = 2
-    assert gm.hears_timing and gm.timing_features == 2 and gm.denoiser.num_inputs == 3
+    assert gm.hears_timing and gm.timing_features == 2 and gm.denoiser.num_conditions == 3
     with pytest.raises(ConfigError):
         GestureModelConfig(variant="no_prior", vae=cfg, denoiser=DenoiserConfig(width=256, layers=3, heads=2))

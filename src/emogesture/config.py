@@ -83,10 +83,26 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
     return value
 
 
+#: A retired option's value that does anything (:func:`from_dict`): any value is inert.
+ANY_VALUE = object()
+
+
 def from_dict(cls: type[T], data: dict, where: str = "config") -> T:
-    """Build dataclass ``cls`` from a (nested) dict; unknown keys raise ConfigError."""
+    """Build dataclass ``cls`` from a (nested) dict; unknown keys raise ConfigError.
+
+    A class may name options it no longer has, tried and not adopted, with the value that left them off
+    (``RETIRED: ClassVar[dict]``, :data:`ANY_VALUE` for one that did nothing while another was off): a stored
+    config holding one at that value reads as if it were not there (files saved before it was removed); at
+    any other value it is a one-line error, since this version cannot do what it asked."""
     hints = typing.get_type_hints(cls)
     names = {f.name for f in dataclasses.fields(cls) if f.init}
+    retired = getattr(cls, "RETIRED", {})
+    for key in [k for k in data if k in retired and k not in names]:
+        off = retired[key]
+        if off is not ANY_VALUE and data[key] != off:
+            raise ConfigError(f"{where}.{key} = {data[key]!r}: this option was removed (tried and not adopted); "
+                              "a model or run that used it cannot be read by this version")
+        data = {k: v for k, v in data.items() if k != key}
     unknown = set(data) - names
     if unknown:
         raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}; known: {sorted(names)}")

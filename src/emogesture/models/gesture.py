@@ -42,28 +42,22 @@ class GestureModelConfig:
             raise ConfigError(f"variant {self.variant} needs denoiser.num_conditions = {want}")
         if self.variant == "no_audio" and self.hears_timing:
             raise ConfigError("the no_audio variant hears no speech, so it takes no timing stream "
-                              "(denoiser.timing_tokens and vae.timing_features = 0)")
+                              "(vae.timing_features = 0)")
         if self.variant == "no_prior" and self.vae.timing_features:
             raise ConfigError("the no_prior variant's linear map reads no timing stream (vae.timing_features = 0)")
-        if self.vae.timing_features and self.denoiser.timing_tokens \
-                and self.vae.timing_features != self.denoiser.timing_features:
-            raise ConfigError("vae.timing_features and denoiser.timing_features must agree (one stream)")
-        if self.denoiser.timing_tokens and self.denoiser.timing_frames != self.vae.frames:
-            raise ConfigError(f"denoiser.timing_frames ({self.denoiser.timing_frames}) must equal vae.frames "
-                              f"({self.vae.frames}): the stream covers the window's motion frames")
         if self.vae.latent_dim != self.denoiser.latent_dim:
             raise ConfigError("vae.latent_dim and denoiser.latent_dim must agree")
 
     @property
     def hears_timing(self) -> bool:
-        """True when the model reads the speech's timing stream: its denoiser (after its
-        condition latents) and/or its motion decoder. The stream then ends the model's conditions."""
-        return self.denoiser.timing_tokens > 0 or self.vae.timing_features > 0
+        """True when the model's motion decoder reads the speech's timing stream. The stream then ends the
+        model's conditions."""
+        return self.vae.timing_features > 0
 
     @property
     def timing_features(self) -> int:
         """Numbers per frame of the timing stream (0 when the model reads none)."""
-        return self.vae.timing_features or (self.denoiser.timing_features if self.denoiser.timing_tokens else 0)
+        return self.vae.timing_features
 
     @classmethod
     def preset(cls, name: str, variant: str = "joint") -> "GestureModelConfig":
@@ -166,8 +160,6 @@ def gesture_flops(config: GestureModelConfig) -> dict[str, int]:
         z = torch.zeros(1, config.vae.latent_dim)
         conds = [torch.zeros(1, config.denoiser.cond_dim) for _ in range(config.denoiser.num_conditions)]
         timing = torch.zeros(1, config.vae.frames, config.timing_features) if config.hears_timing else None
-        if config.denoiser.timing_tokens:
-            conds.append(timing)
         t = torch.zeros(1, dtype=torch.long)
         mfcc = torch.zeros(1, config.mfcc_dim)
     out = {}

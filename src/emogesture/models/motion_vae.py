@@ -18,13 +18,6 @@ Windows may be shorter than ``frames`` (the maximum; the positional tables are s
 Options beside MLD's design (each off in the ``paper`` preset; measurements behind them:
 ``experiments/README.md``, "Motion prior"):
 
-* ``frames_per_token = k > 1``: every transformer token is ``k`` consecutive frames (the encoder's input
-  Linear reads ``k × 282`` numbers, the decoder's output Linear writes them; a window shorter than a
-  multiple of ``k`` is padded with its last frame and the output cropped). Set by no preset.
-* ``latent_tokens = L > 1``: z is L parts of ``latent_dim / L`` numbers. The encoder has 2L
-  distribution tokens (L for μ, then L for log σ²); the decoder's memory is the L parts, each projected to
-  the width and tagged with a learnable memory embedding, so frames can attend to different parts. z stays
-  one vector ``[B, latent_dim]`` outside the VAE (the denoiser is unchanged). Set by no preset.
 * ``low_frequency_path = F > 0`` (tiny): a linear path beside the transformers. The encoder adds
   ``Linear(DCT_F(frame embeddings))`` to μ, where ``DCT_F`` takes the first F DCT-II coefficients over
   time (coefficient 0 is the time mean); the decoder adds ``Σ_f cos_f(t) · Linear(z)_f`` to every frame.
@@ -40,13 +33,15 @@ Options beside MLD's design (each off in the ``paper`` preset; measurements behi
   added, so each frame knows when the speech around it moves without that passing through z. The Linear
   starts at zero (the prior begins as MLD's). :meth:`MotionVAE.decode_pair` decodes with and without the
   stream, for timing guidance at generation (:class:`~emogesture.models.generation.GenerationConfig`).
-* ``decoder_smoothing = σ > 0``: a Gaussian smoothing over time ends the decoder, in training and
-  generation alike. Set by no preset.
+
+Tried and not adopted (reports in ``experiments/reports/``): several frames per token, several latent tokens,
+a smoothing that ends the decoder.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 from torch import nn
@@ -62,6 +57,8 @@ from emogesture.motion.skeleton import WRIST_JOINTS
 class MotionVAEConfig:
     """Size of the motion VAE. Defaults are the ``paper`` preset (MLD's VAE: 9 layers, 4 heads, d 256)."""
 
+    RETIRED: ClassVar[dict] = {"frames_per_token": 1, "latent_tokens": 1, "decoder_smoothing": 0.0}
+
     feature_dim: int = 282
     frames: int = 300
     latent_dim: int = 256
@@ -70,8 +67,6 @@ class MotionVAEConfig:
     heads: int = 4
     ff_dim: int = 1024
     dropout: float = 0.1
-    frames_per_token: int = 1
-    latent_tokens: int = 1
     low_frequency_path: int = 0
     #: A second linear cosine path, for some feature columns only (not in MLD; 0 = off): the encoder adds
     #: ``Linear(DCT_F(the columns' own features))`` to μ, the decoder adds ``Σ_f cos_f(t) · Linear(z)_f``
@@ -83,34 +78,23 @@ class MotionVAEConfig:
     #: σ, in frames, of a Gaussian smoothing of the timing stream before the decoder reads it (0 = none):
     #: the fbank's frame-to-frame onset strength is jittery, and read raw it comes out as jitter.
     timing_smoothing: float = 0.0
-    #: σ, in frames, of a Gaussian smoothing that ends the decoder, in training and generation alike
-    #: (0 = none): a decoder trained through it cannot output frame-to-frame jitter, and learns strokes
-    #: that keep their speed after it (``output_smoothing`` at generation only costs that speed).
-    decoder_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
-        if min(self.feature_dim, self.frames, self.latent_dim, self.frames_per_token, self.latent_tokens) < 1:
-            raise ConfigError("motion VAE: feature_dim, frames, latent_dim, frames_per_token and latent_tokens "
-                              "must be positive")
-        if not 0 <= self.low_frequency_path <= self.frames // self.frames_per_token:
-            raise ConfigError(f"motion VAE: low_frequency_path must be in 0..{self.frames // self.frames_per_token}, "
+        if min(self.feature_dim, self.frames, self.latent_dim) < 1:
+            raise ConfigError("motion VAE: feature_dim, frames and latent_dim must be positive")
+        if not 0 <= self.low_frequency_path <= self.frames:
+            raise ConfigError(f"motion VAE: low_frequency_path must be in 0..{self.frames}, "
                               f"got {self.low_frequency_path}")
         if self.detail_path:
             cols = self.detail_columns
             if not cols or len(set(cols)) != len(cols) or min(cols) < 0 or max(cols) >= self.feature_dim:
                 raise ConfigError(f"motion VAE: detail_columns must be distinct feature columns in "
                                   f"0..{self.feature_dim - 1}, got {list(cols)}")
-            if not 0 < self.detail_path <= self.frames or self.frames_per_token != 1:
-                raise ConfigError(f"motion VAE: detail_path must be in 0..{self.frames}, with frames_per_token 1; "
-                                  f"got {self.detail_path} with {self.frames_per_token}")
-        if self.latent_dim % self.latent_tokens:
-            raise ConfigError(f"motion VAE: latent_tokens {self.latent_tokens} does not divide "
-                              f"latent_dim {self.latent_dim}")
-        if min(self.timing_features, self.timing_smoothing, self.decoder_smoothing) < 0:
-            raise ConfigError(f"motion VAE: timing_features, timing_smoothing and decoder_smoothing must be ≥ 0, "
-                              f"got {self.timing_features}, {self.timing_smoothing}, {self.decoder_smoothing}")
-        if self.frames % self.frames_per_token:
-            raise ConfigError(f"motion VAE: frames_per_token {self.frames_per_token} does not divide {self.frames} frames")
+            if not 0 < self.detail_path <= self.frames:
+                raise ConfigError(f"motion VAE: detail_path must be in 0..{self.frames}, got {self.detail_path}")
+        if min(self.timing_features, self.timing_smoothing) < 0:
+            raise ConfigError(f"motion VAE: timing_features and timing_smoothing must be ≥ 0, "
+                              f"got {self.timing_features}, {self.timing_smoothing}")
         self.transformer(cross_attention=False)  # validates width/heads/layers/dropout
 
     def transformer(self, cross_attention: bool) -> SkipTransformerConfig:
@@ -173,30 +157,27 @@ class MotionVAE(nn.Module):
         c = config
         d = c.width
         # Encoder P_E.
-        k, tokens = c.frames_per_token, c.frames // c.frames_per_token
-        lt, part = c.latent_tokens, c.latent_dim // c.latent_tokens
-        self.encoder_input = nn.Linear(k * c.feature_dim, d)
-        self.dist_tokens = nn.Parameter(torch.zeros(1, 2 * lt, d))  # [μ tokens, log σ² tokens]
-        self.encoder_pos = nn.Parameter(torch.zeros(1, 2 * lt + tokens, d))
+        tokens, part = c.frames, c.latent_dim
+        self.encoder_input = nn.Linear(c.feature_dim, d)
+        self.dist_tokens = nn.Parameter(torch.zeros(1, 2, d))  # [μ token, log σ² token]
+        self.encoder_pos = nn.Parameter(torch.zeros(1, 2 + tokens, d))
         self.encoder = SkipTransformer(c.transformer(cross_attention=False))
         self.to_mu = nn.Linear(d, part) if d != part else nn.Identity()
         self.to_logvar = nn.Linear(d, part) if d != part else nn.Identity()
         # Decoder P_D.
         self.decoder_pos = nn.Parameter(torch.zeros(1, tokens, d))
         self.latent_to_memory = nn.Linear(part, d) if d != part else nn.Identity()
-        # Which latent token a memory token came from (only with several latent tokens).
-        self.memory_pos = nn.Parameter(torch.zeros(1, lt, d)) if lt > 1 else None
         # Low-frequency path (not in MLD, off in the paper preset); see the module docstring.
         f = c.low_frequency_path
         if f:
             self.register_buffer("dct_basis", dct_basis(tokens, f), persistent=False)
             self.low_frequency_mu = nn.Linear(f * d, c.latent_dim)
-            self.low_frequency_out = nn.Linear(c.latent_dim, f * k * c.feature_dim)
+            self.low_frequency_out = nn.Linear(c.latent_dim, f * c.feature_dim)
             nn.init.zeros_(self.low_frequency_out.weight)  # starts as a no-op: random cosines would only add noise
             nn.init.zeros_(self.low_frequency_out.bias)
         else:
             self.dct_basis = self.low_frequency_mu = self.low_frequency_out = None
-        if c.detail_path:  # the detail path (frames_per_token is 1 here)
+        if c.detail_path:  # the detail path
             self.register_buffer("detail_basis", dct_basis(c.frames, c.detail_path), persistent=False)
             self.register_buffer("detail_index", torch.tensor(c.detail_columns, dtype=torch.long, device="cpu"),
                                  persistent=False)
@@ -207,16 +188,15 @@ class MotionVAE(nn.Module):
         else:
             self.detail_basis = self.detail_index = self.detail_mu = self.detail_out = None
         if c.timing_features:  # the speech's timing stream added to the queries
-            self.timing_to_query = nn.Linear(k * c.timing_features, d)
+            self.timing_to_query = nn.Linear(c.timing_features, d)
             nn.init.zeros_(self.timing_to_query.weight)
             nn.init.zeros_(self.timing_to_query.bias)
         else:
             self.timing_to_query = None
         self.decoder = SkipTransformer(c.transformer(cross_attention=True))
-        self.decoder_output = nn.Linear(d, k * c.feature_dim)
-        for p in (self.dist_tokens, self.encoder_pos, self.decoder_pos, self.memory_pos):
-            if p is not None:
-                nn.init.trunc_normal_(p, std=0.02)
+        self.decoder_output = nn.Linear(d, c.feature_dim)
+        for p in (self.dist_tokens, self.encoder_pos, self.decoder_pos):
+            nn.init.trunc_normal_(p, std=0.02)
 
     def _check_motion(self, motion: torch.Tensor) -> None:
         c = self.config
@@ -232,22 +212,17 @@ class MotionVAE(nn.Module):
         Returns: ``z [B, 256]``, ``mu [B, 256]``, ``logvar [B, 256]``.
         """
         self._check_motion(motion)
-        b, t, f = motion.shape
-        k = self.config.frames_per_token
-        n = -(-t // k)  # tokens
-        if n * k != t:
-            motion = torch.cat([motion, motion[:, -1:].expand(b, n * k - t, f)], dim=1)
-        frames = self.encoder_input(motion.reshape(b, n, k * f))
+        b, n, _ = motion.shape  # a token per frame
+        frames = self.encoder_input(motion)
         x = torch.cat([self.dist_tokens.expand(b, -1, -1), frames], dim=1)
-        lt = self.config.latent_tokens
-        y = self.encoder(x, self.encoder_pos[:, : n + 2 * lt])
-        mu, logvar = self.to_mu(y[:, :lt]).reshape(b, -1), self.to_logvar(y[:, lt : 2 * lt]).reshape(b, -1)
+        y = self.encoder(x, self.encoder_pos[:, : n + 2])
+        mu, logvar = self.to_mu(y[:, :1]).reshape(b, -1), self.to_logvar(y[:, 1:2]).reshape(b, -1)
         if self.low_frequency_mu is not None:  # DCT-II coefficients of the frame embeddings over time
             coefficients = torch.einsum("nf,bnd->bfd", self.dct_basis[:n], frames) / n
             mu = mu + self.low_frequency_mu(coefficients.reshape(b, -1))
         if self.detail_mu is not None:  # DCT-II coefficients of the detail columns over time
             detail = motion[:, :, self.detail_index]
-            coefficients = torch.einsum("tf,btc->bfc", self.detail_basis[:t], detail[:, :t]) / t
+            coefficients = torch.einsum("tf,btc->bfc", self.detail_basis[:n], detail) / n
             mu = mu + self.detail_mu(coefficients.reshape(b, -1))
         if not sample:
             return mu, mu, logvar
@@ -285,37 +260,33 @@ class MotionVAE(nn.Module):
             raise ValueError(f"motion VAE decodes 1..{c.frames} frames, asked for {t}")
         if z.dim() != 2 or z.shape[-1] != c.latent_dim:
             raise ValueError(f"motion VAE expects z [B, {c.latent_dim}], got {tuple(z.shape)}")
-        memory = self.latent_to_memory(z.reshape(z.shape[0], c.latent_tokens, -1))  # [B, L, d]
-        if self.memory_pos is not None:
-            memory = memory + self.memory_pos
-        n = -(-t // c.frames_per_token)  # tokens
+        memory = self.latent_to_memory(z.reshape(z.shape[0], 1, -1))  # [B, 1, d]
+        n = t  # a token per frame
         pos = self.decoder_pos[:, :n]
         queries = torch.zeros(z.shape[0], n, c.width, device=z.device, dtype=z.dtype) + pos
         if self.timing_to_query is not None:
             queries = queries + self.timing_to_query(self._timing_tokens(timing, z.shape[0], n))
-        out = self.decoder_output(self.decoder(queries, pos, memory))  # [B, n, k * D]
+        out = self.decoder_output(self.decoder(queries, pos, memory))  # [B, T, D]
         if self.low_frequency_out is not None:  # the same cosines, weighted by a Linear of z
             coefficients = self.low_frequency_out(z).reshape(z.shape[0], c.low_frequency_path, -1)
             out = out + torch.einsum("nf,bfe->bne", self.dct_basis[:n], coefficients)
-        out = out.reshape(z.shape[0], n * c.frames_per_token, c.feature_dim)[:, :t]
         if self.detail_out is not None:
             coefficients = self.detail_out(z).reshape(z.shape[0], c.detail_path, -1)
             detail = torch.einsum("tf,bfc->btc", self.detail_basis[:t], coefficients)
             out = out.index_add(2, self.detail_index, detail)
-        return gaussian_smooth(out, c.decoder_smoothing) if c.decoder_smoothing > 0 else out
+        return out
 
     def _timing_tokens(self, timing: torch.Tensor | None, b: int, n: int) -> torch.Tensor:
-        """The timing stream ``[B, >= n·k, F]`` grouped per query token: ``[B, n, k·F]``."""
+        """The timing stream ``[B, >= n, F]`` of the ``n`` query tokens (frames): ``[B, n, F]``, smoothed."""
         c = self.config
-        k = c.frames_per_token
         if timing is None or timing.dim() != 3 or timing.shape[0] != b or timing.shape[2] != c.timing_features \
-                or timing.shape[1] < n * k:
+                or timing.shape[1] < n:
             got = None if timing is None else tuple(timing.shape)
-            raise ValueError(f"this motion decoder reads a timing stream [B={b}, >={n * k}, {c.timing_features}], got {got}")
-        timing = timing[:, : n * k]
+            raise ValueError(f"this motion decoder reads a timing stream [B={b}, >={n}, {c.timing_features}], got {got}")
+        timing = timing[:, :n]
         if c.timing_smoothing > 0:
             timing = gaussian_smooth(timing, c.timing_smoothing)
-        return timing.reshape(b, n, k * c.timing_features)
+        return timing
 
     def forward(
         self, motion: torch.Tensor, generator: torch.Generator | None = None, sample: bool = True,

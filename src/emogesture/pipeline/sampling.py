@@ -83,7 +83,7 @@ def sample_latents(gesture: LoadedModel, conditions: list[np.ndarray], seeds: li
     scheduler = make_ddim_scheduler(cfg.diffusion, steps)
     if any(len(c) != len(seeds) for c in conditions):
         raise ValueError(f"got {len(seeds)} seeds for conditions of {[len(c) for c in conditions]} windows")
-    conditions = conditions[: cfg.denoiser.num_inputs]  # a stream only the decoder reads stays out
+    conditions = conditions[: cfg.denoiser.num_conditions]  # the timing stream is the decoder's
     out = []
     with bf16_weights(precision, model.denoiser, pack=True):
         for i in range(0, len(seeds), batch_size):

@@ -16,6 +16,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import ClassVar
 
 import lightning as L
 import numpy as np
@@ -35,45 +36,27 @@ from emogesture.models.generation import GenerationConfig
 from emogesture.models.metadata import GestureMetadata
 from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody
-from emogesture.motion.skeleton import FINGER_JOINTS, WRIST_JOINTS
 from emogesture.eval.split_latents import model_conditions, window_conditions
 from emogesture.pipeline.sampling import calibrate_residual
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.train.engine import AveragedWeightsMixin, step_generator
 
-LOSS_TERMS = ("rec", "vrec", "vspeed", "vaccel", "kl", "ld", "align", "valign", "align_speed", "align_accel",
-              "audio_rec")
+LOSS_TERMS = ("rec", "vrec", "kl", "ld", "align", "valign", "audio_rec")
 
 
 @dataclass
 class GestureLossWeights:
+    RETIRED: ClassVar[dict] = {"vspeed": 0.0, "align_speed": 0.0, "vaccel": 0.0, "align_accel": 0.0,
+                               "finger_features": 1.0, "wrist_features": 1.0}
+
     rec: float = 1.0
     vrec: float = 1.0
     kl: float = 1e-4
     ld: float = 1.0
     align: float = 1.0
     valign: float = 1.0
-    #: Smooth L1 between the joints' speeds (frame-to-frame displacement lengths, in the units of
-    #: ``joint_scale``) of the reconstruction (``vspeed``) or of the aligned sample (``align_speed``) and
-    #: of the motion (not in the paper; 0 = off). A speed has no direction, so a decoder that knows when
-    #: a stroke falls but not where it goes is not pulled to the average, motionless stroke.
-    vspeed: float = 0.0
-    align_speed: float = 0.0
-    #: The same for the lengths of the joints' accelerations (second differences): speed gained by
-    #: shaking back and forth costs acceleration the motion does not have.
-    vaccel: float = 0.0
-    align_accel: float = 0.0
-    #: Weight of the finger joints' features inside L_rec and L_align (not in the paper; 1 = every
-    #: feature alike, as in both presets). The corpora curl a hand's 15 finger joints together, so one
-    #: curl per hand fills 120 of the 282 numbers; at 0.1 the tiny prior reconstructed the body no
-    #: better (experiments/README.md, "Where the wrists' own rotation is lost").
-    finger_features: float = 1.0
-    #: Weight of the two wrist joints' features inside L_rec and L_align (not in the paper; 1 = every
-    #: feature alike, as in both presets). A stroke turns the wrist in a random direction, which the
-    #: speech's timing stream cannot place, so only the latent can carry it; at 20 a prior trained alone
-    #: for 400 steps kept the wrists' rotation no better (experiments/README.md, "Why the prior drops
-    #: the wrists").
-    wrist_features: float = 1.0
+    # tried and not adopted (reports in experiments/reports/): joint speed and acceleration terms, finger
+    # and wrist feature weights
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
 
@@ -143,19 +126,6 @@ class GestureTrainConfig:
         return cfg
 
 
-def joint_difference_loss(joints: torch.Tensor, target: torch.Tensor, scale: float = 1.0,
-                          order: int = 1) -> torch.Tensor:
-    """Smooth L1 between the lengths of the joints' ``order``-th differences over time (``order`` 1: speeds
-    ``|p[t+1] − p[t]|``, 2: accelerations) ``[B, T−order, J]`` of ``joints`` and ``target`` ``[B, T, J, 3]``,
-    in metres × ``scale`` per frame^order: the same speeds in any direction score 0."""
-    def length(p: torch.Tensor) -> torch.Tensor:
-        p = p * scale
-        for _ in range(order):
-            p = p[:, 1:] - p[:, :-1]
-        return p.square().sum(-1).add(1e-12).sqrt()  # ε: a finite gradient at rest
-    return F.smooth_l1_loss(length(joints), length(target))
-
-
 class GestureWindows(Dataset):
     """Normalised motion windows with their condition latents (and emotion labels)."""
 
@@ -183,11 +153,6 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         self.spec = from_dict(MotionFeatureSpec, features)
         self.register_buffer("mean", torch.tensor(motion_mean, dtype=torch.float32))
         self.register_buffer("std", torch.tensor(motion_std, dtype=torch.float32))
-        weight = torch.ones(self.spec.dim)
-        weight[self.spec.columns(FINGER_JOINTS)] = self.cfg.losses.finger_features
-        weight[self.spec.columns(WRIST_JOINTS)] = self.cfg.losses.wrist_features
-        self.register_buffer("feature_weight", weight, persistent=False)
-        self.plain_feature_weight = bool((weight == 1).all())
         self.body = SkeletonBody()
         for p in self.body.parameters():
             p.requires_grad_(False)
@@ -200,11 +165,8 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         return self.body.forward_features(torch.addcmul(self.mean, normalised, self.std), self.spec)
 
     def feature_loss(self, motion: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        """Smooth L1 between normalised features ``[B, T, D]``, the finger and wrist joints' weighted by
-        ``losses.finger_features`` and ``losses.wrist_features`` (both at 1: the plain mean)."""
-        if self.plain_feature_weight:  # every feature weighs 1: the same mean without the weighting pass
-            return F.smooth_l1_loss(motion, target)
-        return (F.smooth_l1_loss(motion, target, reduction="none") * self.feature_weight).mean()
+        """Smooth L1 between normalised features ``[B, T, D]``."""
+        return F.smooth_l1_loss(motion, target)
 
     def joint_loss(self, joints: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """Smooth L1 between joint positions ``[B, T, 55, 3]`` in units of ``1 / joint_scale`` metres."""
@@ -212,13 +174,6 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
         # the same loss without scaling both [B, T, 55, 3] tensors first
         s = self.cfg.joint_scale
         return s * F.smooth_l1_loss(joints, target, beta=1.0 / s)
-
-    def motion_terms(self, losses: dict, prefix: str, joints: torch.Tensor, target: torch.Tensor) -> None:
-        """The speed and acceleration terms (:func:`joint_difference_loss`, units ``1 / joint_scale`` metres)
-        of the reconstruction (``prefix`` "v") or the aligned sample ("align_") that have a weight."""
-        for order, name in ((1, "speed"), (2, "accel")):
-            if getattr(self.cfg.losses, prefix + name):
-                losses[prefix + name] = joint_difference_loss(joints, target, self.cfg.joint_scale, order)
 
     def conditions(self, batch: dict) -> tuple[list[torch.Tensor], torch.Tensor | None]:
         conds = list(batch["conditions"])
@@ -249,16 +204,14 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                     gt.append(self.joints(m))
             return gt[0]
 
-        # the speech's timing stream ends the conditions of a model that reads one; the
-        # decoder reads it when vae.timing_features > 0, the denoiser when denoiser.timing_tokens > 0
+        # the speech's timing stream ends the conditions of a model that reads one (its motion decoder)
         stream = conds[-1] if cfg.model.vae.timing_features else None
-        conds = conds[: cfg.model.denoiser.num_inputs]
+        conds = conds[: cfg.model.denoiser.num_conditions]
         if phase_prior:
             rec, z, mu, logvar = prior(m, generator=g, timing=stream)
             losses["rec"] = self.feature_loss(rec, m)
             joints_rec = self.joints(rec)
             losses["vrec"] = self.joint_loss(joints_rec, joints_gt())
-            self.motion_terms(losses, "v", joints_rec, joints_gt())
             if variant != "no_prior":
                 losses["kl"] = prior.kl_loss(mu, logvar)
         else:
@@ -282,7 +235,6 @@ class GestureModule(AveragedWeightsMixin, L.LightningModule):
                 losses["align"] = self.feature_loss(m_tilde, m)
                 joints_tilde = self.joints(m_tilde)
                 losses["valign"] = self.joint_loss(joints_tilde, joints_gt())
-                self.motion_terms(losses, "align_", joints_tilde, joints_gt())
         if audio_rec is not None:
             losses["audio_rec"] = audio_rec
         total = sum(getattr(w, k) * v for k, v in losses.items())
