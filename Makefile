@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 EG := $(VENV)/bin/emogesture
 # ffmpeg renders the videos; the speech engines build the synthetic corpus; blender checks the BVH and glTF
 # exports (its glTF importer needs python3-numpy); pocketsphinx-testdata and asterisk-core-sounds-en-g722 hold real
-# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 and asterisk-prompt-{es-co,fr-armelle,it-menardi-wav} and klettres-data real voices a speech model can learn from (experiments/real_neutral.sh), ktuberling-data real voices to validate on (experiments/word_readers.py); Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
+# recorded speech for the real-speech checks, asterisk-core-sounds-{fr,it,ru}-g722 and asterisk-prompt-{es-co,fr-armelle,it-menardi-wav} and klettres-data real voices a perception can be calibrated with (`calibrate speech --real-voices`), ktuberling-data real voices to validate on (experiments/word_readers.py); Khronos' glTF-Validator and three.js (npm, into build/node) check the glb files; chromium and its
 # driver run the web page's browser test
 DEMO_APT := ffmpeg
 TEST_APT := espeak-ng flite festival festvox-us-slt-hts festvox-kallpc16k festvox-kdlpc16k ffmpeg blender python3-numpy \
@@ -77,7 +77,6 @@ $(VENV)/.installed: pyproject.toml Makefile  # a changed install recipe installs
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e '.[train,test,app]'
-	$(PY) -m pip install -q --no-deps resemblyzer==0.1.4  # its speaker encoder's weights only (experiments)
 	touch $@
 
 lint: setup

@@ -78,23 +78,22 @@ def test_report_of_the_bundled_model(tmp_path):
 
 def test_training_voices_are_other_people_and_missing_ones_are_a_one_line_error(tmp_path, monkeypatch):
     from emogesture.data import real_speech
-    from emogesture.data.real_speech import TRAINING_VOICES, TrainingVoice, load_training_voice
+    from emogesture.data.real_speech import TRAINING_VOICES, TrainingVoice, load_voice, real_voice
 
     check_folders = {r.folder for r in RECORDINGS}
     assert not any(v.folder in check_folders or "Allison" in str(v.folder) for v in TRAINING_VOICES.values())
     with pytest.raises(EmogestureError, match="unknown; known: fr_june"):
-        load_training_voice("es_allison")
+        real_voice("es_allison")
     monkeypatch.setitem(real_speech.TRAINING_VOICES, "fr_june",
                         TrainingVoice("fr_june", "", tmp_path / "nowhere", "asterisk-core-sounds-fr-g722"))
     with pytest.raises(InputFileError, match="install Debian's asterisk-core-sounds-fr-g722"):
-        load_training_voice("fr_june")
+        load_voice(real_voice("fr_june"))
 
 
-def test_a_training_voice_leaves_out_damaged_and_silent_clips(tmp_path, monkeypatch):
+def test_a_training_voice_leaves_out_damaged_and_silent_clips(tmp_path):
     import soundfile as sf
 
-    from emogesture.data import real_speech
-    from emogesture.data.real_speech import TrainingVoice, load_training_voice
+    from emogesture.data.real_speech import TrainingVoice, load_voice
 
     tone = (0.3 * np.sin(2 * np.pi * 220 * np.arange(8000) / 8000)).astype(np.float32)  # 1 s at 8 kHz
     (tmp_path / "silence").mkdir()
@@ -102,14 +101,13 @@ def test_a_training_voice_leaves_out_damaged_and_silent_clips(tmp_path, monkeypa
     (tmp_path / "b.wav").write_bytes(b"RIFF not a wave at all")  # ffmpeg's concat demuxer stops here, exit 0
     sf.write(tmp_path / "c.wav", tone[:4000], 8000)
     sf.write(tmp_path / "silence" / "1.wav", np.zeros(8000, np.float32), 8000)
-    monkeypatch.setitem(real_speech.TRAINING_VOICES, "fr_june",
-                        TrainingVoice("fr_june", "", tmp_path, "asterisk-prompt-test", "*.wav"))
-    wave = load_training_voice("fr_june")
+    voice = TrainingVoice("fr_june", "", tmp_path, "asterisk-prompt-test", "*.wav")
+    wave = load_voice(voice)
     assert abs(len(wave) - 1.5 * 16000) < 200  # a and c, resampled to 16 kHz; b and the silence left out
     (tmp_path / "a.wav").write_bytes(b"garbage")
     (tmp_path / "c.wav").write_bytes(b"garbage")
     with pytest.raises(EmogestureError, match="fr_june: ffmpeg could not decode"):
-        load_training_voice("fr_june")
+        load_voice(voice)
 
 
 def test_a_voice_decoded_clip_by_clip_takes_clips_of_any_rate_and_leaves_out_damaged_ones(tmp_path):
@@ -153,10 +151,12 @@ def test_training_voices_speak_every_emotion_as_the_corpus_gives_it(monkeypatch)
 
 
 def test_the_training_voices_are_whole():
-    from emogesture.data.real_speech import TRAINING_VOICES, load_training_voice
+    from emogesture.data.real_speech import TRAINING_VOICES, load_voice
 
-    for name in (n for n in TRAINING_VOICES if not n.startswith("letters_")):
-        wave = load_training_voice(name)
+    for name, voice in TRAINING_VOICES.items():
+        if name.startswith("letters_"):
+            continue
+        wave = load_voice(voice)
         assert wave.dtype == np.float32 and 8 * 60 < len(wave) / 16000 < 30 * 60, name
         frames = np.sqrt((wave[: len(wave) // 160 * 160].reshape(-1, 160) ** 2).mean(1))
         assert np.quantile(frames, 0.9) > 0.02 and (frames < 0.1 * np.quantile(frames, 0.9)).mean() > 0.02, name

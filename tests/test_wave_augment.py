@@ -182,11 +182,12 @@ def test_recording_changes_do_what_they_say():
     assert 5 < 10 * np.log10(rms(x) ** 2 / rms(out["white noise, 10 dB SNR"] - x) ** 2) < 15
 
 
-def test_real_neutral_windows_are_seeded_cache_like_windows(tmp_path):
-    """Windows of real voices for training come out like the cache's (shape, statistics), drawn from the
-    item's own generator, and only where asked for: the quadruples stay the same."""
+def test_labelled_real_windows_are_seeded_cache_like_windows(tmp_path):
+    """Windows of labelled real speech for training come out like the cache's (shape, statistics), with their
+    emotion, drawn from the item's own generator, and only where asked for: the quadruples stay the same."""
+    from emogesture.data.beat import EMOTIONS
     from emogesture.data.cache import open_cache
-    from emogesture.data.datasets import RealNeutralWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
+    from emogesture.data.datasets import LabelledRealWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
     from emogesture.data.prepare import prepare
 
     from helpers import make_root
@@ -197,44 +198,15 @@ def test_real_neutral_windows_are_seeded_cache_like_windows(tmp_path):
     train = cache.split("train")
     augmenter = WaveWindowAugmenter(cache, train, WaveAugmentConfig(noise=1.0))
     voices = [np.tile(_voice(2.0, 120.0), 8).astype(np.float32), np.tile(_voice(2.0, 210.0), 8).astype(np.float32)]
-    real = RealNeutralWindows(augmenter, voices + [np.zeros(100, np.float32)], share=0.5)
-    assert len(real.waves) == 2  # a voice shorter than a window is left out
+    real = LabelledRealWindows(augmenter, [(voices[0], "anger"), (voices[1], "sadness"),
+                                           (np.zeros(100, np.float32), "neutral")], share=0.5)
+    assert real.emotions == [EMOTIONS.index("anger"), EMOTIONS.index("sadness")]  # shorter than a window: left out
     data = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=augmenter, augment_share=0.5, real=real)
     a, b, c = data[0], data[0], data[1]
-    assert a["real"].shape == train.fbank.shape[1:]
+    assert a["real"].shape == train.fbank.shape[1:] and int(a["real_emotion"]) in real.emotions
     assert torch.equal(a["real"], b["real"]) and not torch.equal(a["real"], c["real"])
     assert abs(float(a["real"].mean())) < 1.5  # normalised with the cache's statistics
     plain = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=augmenter, augment_share=0.5)[0]
     assert torch.equal(plain["inputs"], a["inputs"]) and "real" not in plain
     with pytest.raises(ValueError, match="shorter than one window"):
-        RealNeutralWindows(augmenter, [np.zeros(100, np.float32)], share=0.0)
-
-
-def test_real_windows_given_the_corpus_emotions_carry_their_labels_and_cues(tmp_path):
-    """With ``emotion_share``, real windows come with an emotion, drawn from the item's generator, and carry
-    that emotion's cues (anger: louder than neutral); at 0 every window is neutral."""
-    from emogesture.data.beat import EMOTIONS
-    from emogesture.data.cache import open_cache
-    from emogesture.data.datasets import RealNeutralWindows, WaveWindowAugmenter
-    from emogesture.data.prepare import prepare
-
-    from helpers import make_root
-
-    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
-    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
-    cache = open_cache(tmp_path / "cache")
-    augmenter = WaveWindowAugmenter(cache, cache.split("train"), WaveAugmentConfig())
-    voices = [np.tile(_voice(2.0, 120.0), 12).astype(np.float32)]
-    plain = RealNeutralWindows(augmenter, voices, share=0.0)
-    assert {plain.draw(np.random.default_rng(i))[1] for i in range(6)} == {EMOTIONS.index("neutral")}
-    given = RealNeutralWindows(augmenter, voices, share=0.0, emotion_share=0.875)
-    draws = [given.draw(np.random.default_rng(i)) for i in range(40)]
-    assert len({e for _, e in draws}) >= 6  # the eight emotions alike
-    a, b = given.draw(np.random.default_rng(7)), given.draw(np.random.default_rng(7))
-    assert np.array_equal(a[0], b[0]) and a[1] == b[1]
-    assert a[0].shape == plain.draw(np.random.default_rng(0))[0].shape
-    level = {emotion: float(np.mean([f.mean() for f, e in draws if e == EMOTIONS.index(emotion)]))
-             for emotion in ("neutral", "anger")}
-    assert level["anger"] > level["neutral"] + 0.1, level
-    with pytest.raises(ValueError, match="emotion_share"):
-        RealNeutralWindows(augmenter, voices, share=0.0, emotion_share=1.5)
+        LabelledRealWindows(augmenter, [(np.zeros(100, np.float32), "anger")], share=0.0)

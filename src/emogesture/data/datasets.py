@@ -12,8 +12,6 @@ from emogesture.config import from_dict
 from emogesture.data.cache import SplitWindows, WindowsCache
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.quadruples import QuadrupleIndex
-from emogesture.data.synthetic.factors import emotion_prosody
-from emogesture.data.synthetic.speech import give_prosody
 
 
 class WaveWindowAugmenter:
@@ -132,52 +130,6 @@ class AugmentedWindowBank:
         return np.asarray(self.fbank[j, int(rng.integers(self.variants))], np.float32)
 
 
-class RealNeutralWindows:
-    """Windows of real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES`),
-    made like the cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes a voice
-    and a start at random, and hears the window through augmented conditions with probability ``share``.
-
-    With ``emotion_share`` > 0 the voice is also given an emotion's speech prosody as the corpus gives it
-    (:func:`~emogesture.data.synthetic.speech.give_prosody`: the factor table at ``prosody_scale``, plus a
-    take's random deviation): a non-neutral emotion (uniform) with probability ``emotion_share``, else
-    neutral, so that the read voice is neutral and the same voice with anger's cues is anger, whatever the
-    voice; every window goes through the same processing, neutral ones too.
-    """
-
-    def __init__(self, augmenter: WaveWindowAugmenter, waves: list[np.ndarray], share: float,
-                 emotion_share: float = 0.0, prosody_scale: float = 1.5) -> None:
-        if not 0.0 <= emotion_share <= 1.0:
-            raise ValueError(f"emotion_share {emotion_share} is not in [0, 1]")
-        self.augmenter, self.share = augmenter, share
-        self.emotion_share, self.prosody_scale = emotion_share, prosody_scale
-        n = int(augmenter.window_samples * self.longest_source)
-        self.waves = [w for w in waves if len(w) > n]
-        if not self.waves:
-            raise ValueError("every real voice is shorter than one window")
-
-    @property
-    def longest_source(self) -> float:
-        """How many windows' worth of the recording one window may take (a faster tempo takes more)."""
-        return 1.5 if self.emotion_share > 0 else 1.0
-
-    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, int]:
-        """One window's fbank ``[frames, n_mels]`` float32 and its emotion (an index into ``EMOTIONS``)."""
-        n = self.augmenter.window_samples
-        wave = self.waves[int(rng.integers(len(self.waves)))]
-        take = int(n * self.longest_source)
-        start = int(rng.integers(len(wave) - take))
-        x = wave[start: start + take]
-        emotion = "neutral"
-        if self.emotion_share > 0:
-            if rng.random() < self.emotion_share:
-                emotion = [e for e in EMOTIONS if e != "neutral"][int(rng.integers(len(EMOTIONS) - 1))]
-            x = give_prosody(x, emotion_prosody(emotion, self.prosody_scale, rng), rng)
-        x = x[:n]
-        if rng.random() < self.share:
-            x, _ = augment_waveform(x, rng, self.augmenter.config)
-        return self.augmenter.window_fbank(x), EMOTIONS.index(emotion)
-
-
 class LabelledRealWindows:
     """Windows of emotion-labelled real speech (:mod:`emogesture.data.labelled_speech`), made like the
     cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes an emotion (uniform
@@ -219,14 +171,14 @@ class SpeechQuadrupleDataset(Dataset):
     ``augmenter`` (drawn afresh, or one of an :class:`AugmentedWindowBank`'s variants), each window is also
     heard through augmented conditions with probability ``augment_share`` (the same generator decides):
     ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
-    clean windows (the reconstruction target). With ``real`` (read evenly, or labelled), also one window of a real voice,
-    ``real [1024, n_mels]``, and its emotion ``real_emotion`` (int; drawn after the quadruple, from the same
+    clean windows (the reconstruction target). With ``real`` (labelled real speech), also one window of a real
+    voice, ``real [1024, n_mels]``, and its emotion ``real_emotion`` (int; drawn after the quadruple, from the same
     generator).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
                  augmenter: WaveWindowAugmenter | AugmentedWindowBank | None = None, augment_share: float = 0.0,
-                 real: RealNeutralWindows | LabelledRealWindows | None = None) -> None:
+                 real: LabelledRealWindows | None = None) -> None:
         if not 0.0 <= augment_share <= 1.0:
             raise ValueError(f"augment_share {augment_share} is not in [0, 1]")
         self.augmenter, self.augment_share, self.real = augmenter, augment_share, real

@@ -16,16 +16,16 @@ package may be missing; :func:`real_recordings` returns what is installed.
 The clips of a group are joined in their order with 0.3 s of silence between them, so each group is one
 recording of a single speaker, as a user would give it.
 
-**Real voices for training** (:data:`TRAINING_VOICES`, :func:`load_training_voice`) are other people: the
+**Real voices to calibrate on** (:data:`TRAINING_VOICES`, :func:`load_voice`) are other people: the
 Asterisk prompts of other languages, each read by its own professional voice, every clip of the voice
 joined. Three are studio recordings at 16 kHz (CC BY-SA 3.0; Debian's ``asterisk-core-sounds-{fr,it,ru}-g722``,
 about 25 min each); three more are telephone-band recordings at 8 kHz (``asterisk-prompt-es-co``, GPL,
 a Colombian Spanish voice, 9 min; ``asterisk-prompt-fr-armelle``, GPL, a French voice, 12 min;
 ``asterisk-prompt-it-menardi-wav``, CC BY-SA 3.0, an Italian voice, 20 min). They are read without acted
-emotion, so a speech model may learn from them that a real voice reading evenly is neutral
-(``train speech --set real_neutral=...``) and, given an emotion's corpus prosody, that emotion
-(``real_emotion_share``). The Mexican Spanish core prompts are left out: their voice is the English check
-recording's (Allison Smith), and a check voice is never trained on. Ten more are volunteers, not professionals,
+emotion, so the speech model's perception may take each emotion's mean of them given that emotion's corpus
+prosody (:func:`training_voice_emotions`; ``calibrate speech --real-voices``). The Mexican Spanish core
+prompts are left out: their voice is the English check recording's (Allison Smith), and a check voice is never
+trained on. Ten more are volunteers, not professionals,
 each reading the letters and syllables of a language aloud for KDE's KLettres (``klettres-data``, GPL-2+;
 :data:`LETTER_READERS`, 45 s to 21 min each, their own microphones and rooms).
 
@@ -196,15 +196,6 @@ def _decode(clips: list[Path]) -> tuple[bytes, str]:
     return (proc.stdout if proc.returncode == 0 else b""), errors
 
 
-def load_training_voice(name: str) -> np.ndarray:
-    """Every clip of training voice ``name`` (:data:`TRAINING_VOICES`) in path order, decoded and joined -> a
-    16-kHz waveform ``[N]`` float32. A clip ffmpeg cannot read (two of the Colombian voice's are damaged) is
-    left out, and so are clips of pure silence (a ``silence`` folder)."""
-    if name not in TRAINING_VOICES:
-        raise EmogestureError(f"real voice {name!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
-    return load_voice(TRAINING_VOICES[name])
-
-
 def real_voice(name: str) -> TrainingVoice:
     """The real voice ``name``: a training voice (:data:`TRAINING_VOICES`) or a validation voice
     (:data:`WORD_READERS`)."""
@@ -215,8 +206,9 @@ def real_voice(name: str) -> TrainingVoice:
 
 
 def load_voice(voice: TrainingVoice) -> np.ndarray:
-    """Every clip of ``voice`` in path order, decoded and joined -> a 16-kHz waveform ``[N]`` float32 (as
-    :func:`load_training_voice`)."""
+    """Every clip of ``voice`` in path order, decoded and joined -> a 16-kHz waveform ``[N]`` float32. A clip
+    ffmpeg cannot read (two of the Colombian voice's are damaged) is left out, and so are clips of pure silence
+    (a ``silence`` folder)."""
     name = voice.name
     clips = sorted(c for c in voice.folder.rglob(voice.pattern) if "silence" not in c.relative_to(voice.folder).parts) \
         if voice.folder.is_dir() else []

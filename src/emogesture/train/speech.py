@@ -5,22 +5,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import lightning as L
 import torch
 from torch.utils.data import DataLoader
 
-from emogesture.audio import TARGET_SAMPLE_RATE, augment_fbank, scramble_segments
+from emogesture.audio import TARGET_SAMPLE_RATE, augment_fbank
 from emogesture.audio.wave_augment import WaveAugmentConfig
 from emogesture.checkpoints import load_model, model_paths, save_model
-from emogesture.config import changed_keys, from_dict, to_dict
+from emogesture.config import ANY_VALUE, changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import (AugmentedWindowBank, LabelledRealWindows, RealNeutralWindows,
-                                      SpeechQuadrupleDataset, WaveWindowAugmenter)
+from emogesture.data.datasets import (AugmentedWindowBank, LabelledRealWindows, SpeechQuadrupleDataset,
+                                      WaveWindowAugmenter)
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
-from emogesture.data.real_speech import load_training_voice
-from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.errors import ConfigError
 from emogesture.models.metadata import SpeechMetadata
 from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
@@ -32,6 +31,13 @@ from emogesture.train.engine import AveragedWeightsMixin, step_generator
 @dataclass
 class SpeechTrainConfig:
     """Everything a speech-model run needs besides the engine settings; stored in the run."""
+
+    #: Tried and not adopted, removed (reports in experiments/reports/): a word-order scramble of the emotion
+    #: encoder's input, real voices taught as neutral or given the corpus's emotions, a pull of the real
+    #: windows' emotion latents toward the batch's (see :func:`emogesture.config.from_dict`).
+    RETIRED: ClassVar[dict] = {"emotion_scramble": 0, "emotion_scramble_share": ANY_VALUE, "real_neutral": [],
+                               "real_neutral_weight": ANY_VALUE, "real_neutral_pull": 0.0,
+                               "real_emotion_share": ANY_VALUE}
 
     model: SpeechModelConfig = field(default_factory=lambda: SpeechModelConfig.preset("tiny"))
     losses: SpeechLossConfig = field(default_factory=SpeechLossConfig)
@@ -45,11 +51,6 @@ class SpeechTrainConfig:
     #: Exponential moving average of the weights (0 = off); the exported model is the average.
     ema_decay: float = 0.99
     augment: bool = True
-    #: Segment length (fbank frames) of the word-order scramble the emotion encoder alone sees during
-    #: training (0 = off; an extension): see :func:`emogesture.audio.augment.scramble_segments`.
-    emotion_scramble: int = 0
-    #: Share of the windows that get the scramble (the others keep their word order, as at inference).
-    emotion_scramble_share: float = 0.5
     #: Share of the training windows the encoders hear through augmented recording conditions (room,
     #: noise, microphone, telephone, codec, voice shift, tempo: :mod:`emogesture.audio.wave_augment`, drawn
     #: per window from the item's seeded generator); the reconstruction target stays the clean window.
@@ -60,32 +61,14 @@ class SpeechTrainConfig:
     #: drawn afresh, in the data workers). With ``K`` > 0, ``K`` draws of the augmented conditions per window
     #: are made in parallel on every core and kept in memory (float16; about 2 GB for 1200 windows at 8), and
     #: an augmented window is one of them, drawn per item; the fbank masks, noise and shifts are still drawn
-    #: afresh, and the real voices' windows too. On a CPU this takes the waveform augmentation, most of a
+    #: afresh, and the labelled real windows too. On a CPU this takes the waveform augmentation, most of a
     #: step's work, off the training steps (:class:`emogesture.data.datasets.AugmentedWindowBank`).
     wave_variants: int = 0
-    #: Real voices read without acted emotion, by name (:data:`emogesture.data.real_speech.TRAINING_VOICES`;
-    #: empty: none, the corpus alone). Each quadruple brings one window of them, heard through the same
-    #: augmented conditions (``wave_augment``), and the emotion encoder's classifier learns to hear it as
-    #: neutral (cross-entropy times ``real_neutral_weight``, added to the losses): a real voice's delivery,
-    #: unlike every synthetic one, is not yet an emotion.
-    real_neutral: list[str] = field(default_factory=list)
-    real_neutral_weight: float = 1.0
-    #: Also pull the real windows' emotion latents toward the mean emotion latent of the batch's corpus
-    #: windows of their emotion, neutral unless ``real_emotion_share`` (squared distance over the batch's
-    #: latent variance, times this weight; 0 = off): the perception reads the latent's nearest emotion mean
-    #: as well as the classifier.
-    real_neutral_pull: float = 0.0
-    #: Share of the real windows given a non-neutral emotion's speech prosody as the corpus gives it (pitch
-    #: and its span, tempo, vocal effort, breath, loudness: the factor table at the corpus's scale, plus a
-    #: take's random deviation) and taught as that emotion; the others keep the voice's own delivery, through
-    #: the same processing, taught as neutral (0 = none processed: every real window as recorded, neutral).
-    real_emotion_share: float = 0.0
     #: Emotion-labelled real speech a user holds: the path of its manifest
     #: (:mod:`emogesture.data.labelled_speech`; empty: none). Each quadruple brings one window of its train
     #: split's speakers (an emotion drawn evenly, then one speaker's recordings of it), heard through the same
     #: augmented conditions (``wave_augment``), and the emotion classifier learns to hear it as its emotion
-    #: (cross-entropy times ``real_labelled_weight``; ``real_neutral_pull`` pulls as for the voices above).
-    #: Not together with ``real_neutral``.
+    #: (cross-entropy times ``real_labelled_weight``, added to the losses).
     real_labelled: str = ""
     real_labelled_weight: float = 1.0
     freq_mask: int = 24
@@ -124,8 +107,7 @@ class SpeechTrainConfig:
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
-                 wave: WaveAugmentConfig | None = None, real_neutral: Sequence[str] = (),
-                 real_emotion_share: float = 0.0, wave_variants: int = 0, progress: bool = True,
+                 wave: WaveAugmentConfig | None = None, wave_variants: int = 0, progress: bool = True,
                  real_labelled: str = ""):
         super().__init__()
         self.cache = open_cache(cache_dir)
@@ -135,10 +117,8 @@ class SpeechDataModule(L.LightningDataModule):
         self.speakers = sorted(set(self.train.speaker_id.tolist()))
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
         augmenter = (WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig())
-                      if wave_augment > 0 or real_neutral or real_labelled else None)
-        scale = corpus_emotion_prosody_scale(Path(self.cache.manifest["root"])) if real_emotion_share > 0 else 1.0
-        real = (RealNeutralWindows(augmenter, [load_training_voice(v) for v in real_neutral], wave_augment,
-                                   real_emotion_share, scale) if real_neutral else None)
+                      if wave_augment > 0 or real_labelled else None)
+        real = None
         if real_labelled:
             seconds = augmenter.window_samples / TARGET_SAMPLE_RATE + 1.0  # short ones repeated past a window
             recordings = labelled_recordings(read_manifest(real_labelled), "train", seconds)
@@ -197,56 +177,25 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
             b, k, t, f = fbank.shape
             inputs = augment_fbank(inputs.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
                                    self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
-        emotion_inputs = None
-        if self.cfg.emotion_scramble > 0:
-            g = step_generator(self.seed, self.global_step, self.global_rank, 1)
-            b, k, t, f = inputs.shape
-            flat = inputs.reshape(b * k, t, f).cpu()
-            chosen = torch.rand(b * k, generator=g) < self.cfg.emotion_scramble_share
-            flat = torch.where(chosen[:, None, None], scramble_segments(flat, g, self.cfg.emotion_scramble), flat)
-            emotion_inputs = flat.reshape(b, k, t, f).to(inputs.device)
-        losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank,
-                               emotion_fbank=emotion_inputs)
-        weight = self.cfg.real_labelled_weight if self.cfg.real_labelled else self.cfg.real_neutral_weight
-        if "real" in batch and (weight > 0 or self.cfg.real_neutral_pull > 0):
-            ce, pull = self.real_neutral_loss(batch["real"], batch["real_emotion"], inputs, batch["emotion"])
-            name = "real_labelled" if self.cfg.real_labelled else "real_neutral"
-            losses[name], losses[f"{name}_pull"] = ce, pull
-            losses["total"] = losses["total"] + weight * ce + self.cfg.real_neutral_pull * pull
+        losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank)
+        if "real" in batch and self.cfg.real_labelled_weight > 0:
+            losses["real_labelled"] = self.real_labelled_loss(batch["real"], batch["real_emotion"])
+            losses["total"] = losses["total"] + self.cfg.real_labelled_weight * losses["real_labelled"]
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
         return losses["total"]
 
-    def real_neutral_loss(self, real: torch.Tensor, real_emotion: torch.Tensor, inputs: torch.Tensor,
-                          emotion: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """For real-voice windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_neutral`, or
-        ``real_labelled``) of emotions ``real_emotion [B]`` (neutral unless ``real_emotion_share``, or as
-        labelled), through the same spectrogram
-        augmentation as the corpus's: the emotion classifier's cross-entropy toward their emotions, and the
-        squared distance of each one's emotion latent to the mean latent of the batch's corpus windows of its
-        emotion (``inputs [B, 4, 1024, n_mels]``, quadruple emotions ``[B]``; detached), over the corpus
-        windows' latent variance (over the real windows whose emotion the batch has; 0 when none has, or
-        the pull is off)."""
+    def real_labelled_loss(self, real: torch.Tensor, real_emotion: torch.Tensor) -> torch.Tensor:
+        """For labelled real windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_labelled`) of emotions
+        ``real_emotion [B]``, through the same spectrogram augmentation as the corpus's: the emotion
+        classifier's cross-entropy toward their emotions."""
         if self.cfg.augment:
             g = step_generator(self.seed, self.global_step, self.global_rank, 2)
             real = augment_fbank(real.cpu(), g, self.cfg.freq_mask, self.cfg.time_mask, self.cfg.noise_std,
                                  self.cfg.max_shift).to(real.device)
         enc = self.model.encode(real, parts=("emotion",))
-        ce = torch.nn.functional.cross_entropy(enc.emotion_logits, real_emotion)
-        pull = ce.new_zeros(())
-        matched = (real_emotion[:, None] == emotion[None, :])  # [real, quadruple]
-        if self.cfg.real_neutral_pull > 0 and matched.any():
-            chosen = matched.any(0)
-            with torch.no_grad():
-                corpus = self.model.encode(inputs[chosen].flatten(0, 1), parts=("emotion",)).emotion
-            corpus_emotion = emotion[chosen].repeat_interleave(inputs.shape[1])
-            spread = corpus.var(0).mean() if len(corpus) > 1 else corpus.new_ones(())
-            has = matched.any(1)
-            same = (real_emotion[has][:, None] == corpus_emotion[None, :]).float()
-            target = same @ corpus / same.sum(1, keepdim=True)
-            pull = ((enc.emotion[has] - target) ** 2).mean() / (spread + 1e-6)
-        return ce, pull
+        return torch.nn.functional.cross_entropy(enc.emotion_logits, real_emotion)
 
     def configure_optimizers(self):
         c = self.cfg
@@ -294,21 +243,15 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int, progress: bool 
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
     if config.wave_variants < 0 or (config.wave_variants > 0 and config.wave_augment == 0):
         raise ConfigError(f"wave_variants {config.wave_variants}: must be >= 0, and needs wave_augment > 0")
-    if not 0.0 <= config.real_emotion_share <= 1.0:
-        raise ConfigError(f"real_emotion_share {config.real_emotion_share}: a share of the real windows, 0-1")
-    if config.real_neutral_weight < 0 or config.real_neutral_pull < 0 or config.real_labelled_weight < 0:
-        raise ConfigError(f"real_neutral_weight {config.real_neutral_weight}, real_neutral_pull "
-                          f"{config.real_neutral_pull}, real_labelled_weight {config.real_labelled_weight}: "
-                          "must be >= 0")
-    if config.real_labelled and config.real_neutral:
-        raise ConfigError("real_labelled and real_neutral: one source of real windows at a time")
+    if config.real_labelled_weight < 0:
+        raise ConfigError(f"real_labelled_weight {config.real_labelled_weight}: must be >= 0")
     try:
         config.wave.validate()
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits, config.wave_augment, config.wave, config.real_neutral,
-                            config.real_emotion_share, config.wave_variants, progress, config.real_labelled)
+                            config.train_splits, config.wave_augment, config.wave, config.wave_variants, progress,
+                            config.real_labelled)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "

@@ -268,19 +268,10 @@ def scale_prosody(p: Prosody, scale: float) -> Prosody:
                    tremolo=p.tremolo * scale)
 
 
-def speaking_style(p: Prosody, scale: float) -> Prosody:
-    """A speaker's prosody ``p`` with its speaking style (pitch range, rate, loudness, tilt) ``scale`` times as
-    far from the table's middle; the voice's pitch, breathiness and tremolo kept."""
-    scaled = scale_prosody(p, scale)
-    return Prosody(pitch=p.pitch, pitch_range=scaled.pitch_range, rate=scaled.rate, gain_db=scaled.gain_db,
-                   tilt=scaled.tilt, breathiness=p.breathiness, tremolo=p.tremolo)
-
-
-def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float,
-                 speaker_prosody_scale: float = 1.0) -> int:
+def words_needed(min_seconds: float, emotion: str, emotion_prosody_scale: float) -> int:
     """Words a text of ``emotion`` needs so that even its fastest speaker talks ``min_seconds``."""
     rate = EMOTION_FACTORS[emotion].prosody.rate ** emotion_prosody_scale
-    fastest = np.exp(0.1 * speaker_prosody_scale) * rate * np.exp(0.1)  # speaker, emotion, jitter
+    fastest = np.exp(0.1) * rate * np.exp(0.1)  # speaker, emotion, jitter
     return int(np.ceil(min_seconds * BASE_WORDS_PER_SECOND * fastest))
 
 

@@ -23,7 +23,6 @@ from emogesture.data.synthetic.factors import (
     make_jitter,
     make_speaker,
     scale_prosody,
-    speaking_style,
     words_needed,
 )
 from emogesture.data.synthetic.gestures import Stroke, make_motion
@@ -58,7 +57,6 @@ class TakePlan:
     min_seconds: float
     engines: tuple[str, ...]
     emotion_prosody_scale: float  # see CorpusConfig
-    speaker_prosody_scale: float = 1.0  # see CorpusConfig
 
     @property
     def name(self) -> str:
@@ -73,7 +71,7 @@ def take_paths(out: Path, name: str) -> dict[str, Path]:
 def base_sentences(plan: TakePlan) -> int:
     """Sentences of the text's stream every speaker of this text starts from."""
     emotion = EMOTIONS[plan.emotion]
-    words = words_needed(plan.min_seconds, emotion, plan.emotion_prosody_scale, plan.speaker_prosody_scale)
+    words = words_needed(plan.min_seconds, emotion, plan.emotion_prosody_scale)
     return sentences_for_words(plan.seed, emotion, plan.text_index, words)
 
 
@@ -104,8 +102,7 @@ def build_take(out: Path, plan: TakePlan) -> str:
     speaker = make_speaker(plan.seed, plan.speaker_id, plan.engines)
     jitter = make_jitter(plan.seed, plan.speaker_id, plan.take)
     emotion_prosody = scale_prosody(emotion.prosody, plan.emotion_prosody_scale)
-    prosody = combine_prosody(speaking_style(speaker.prosody, plan.speaker_prosody_scale), emotion_prosody,
-                              jitter.prosody)
+    prosody = combine_prosody(speaker.prosody, emotion_prosody, jitter.prosody)
     first = base_sentences(plan)
     with tempfile.TemporaryDirectory(prefix="emogesture-tts-") as tmp:
         for count in range(first, first + MAX_EXTRA_SENTENCES + 1):  # lengthen a take that came out short
