@@ -2,7 +2,7 @@
 # trains, calibrates and bundles a model from a windows cache into RUN (RUN/bundle: float16 weights, config
 # and statistics in JSON, SHA256SUMS), every step resumed when re-run (finished trainings are not redone),
 # each training's wall time appended to RUN/times.txt. bundled_model.sh runs it on the experiments' corpus
-# and ships the result; speaker_spread.sh runs it on a corpus with a wider speaking style.
+# and ships the result.
 #   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
 #      recording conditions) on the train texts of the train speakers only, so that the val texts and
 #      voices stay unseen for the calibrations below and the test texts and voices for the model card;
@@ -19,11 +19,11 @@
 #   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
 #      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
 
-# the second speech stage's harder conditions and learning rate (real_neutral.sh trains on with them)
+# the second speech stage's harder conditions and learning rate (the RAVDESS stage trains on with them)
 SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
              --set lr=5e-4 --set lr_decay_start=100)
 # the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
-# the perception's calibration gives each emotion a mean of theirs too (4.); real_neutral.sh trains on them
+# the perception's calibration gives each emotion a mean of theirs too (4.) when no labelled speech is given
 REAL_VOICES="fr_june, it_carlo, ru_ivr"
 # the recipe's perception calibration (4.): those voices' means, and each emotion's mean of the train takes heard
 # through a telephone band for the read-out (telephone_means.sh)
@@ -93,6 +93,24 @@ speech_second_stage() {  # OUT FIRST CACHE TIMES [option ...] : the recipe's sec
         "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_BAND[@]}" "${SPEECH_VARIANTS[@]}" "$@" --quiet
 }
 
+# RAVDESS (24 actors, CC BY-NC-SA 4.0: a bundle trained on it is for non-commercial use), when the user gives its
+# audio_speech_actors_01-24 folder as RAVDESS=...: split by actor, both sexes in val and test (the split of
+# experiments/ravdess/, where the choices were made on val), calm left out of training
+RAVDESS_SPLIT=(--val-speakers actor02,actor03,actor12 --test-speakers actor08,actor17,actor19)
+
+ravdess_manifest() {  # OUT : the labelled-speech manifest of $RAVDESS, unless OUT is there
+    [ -f "$1" ] || $EG labelled-speech ravdess "$RAVDESS" --out "$1" "${RAVDESS_SPLIT[@]}" --calm drop
+}
+
+ravdess_stage() {  # OUT FROM CACHE MANIFEST TIMES : 700 speech steps on from FROM with the second stage's
+    # settings and one window of the manifest's train actors in each quadruple, into OUT unless it is there
+    local out=$1 from=$2 cache=$3 manifest=$4 times=$5
+    grep -qs '"step": 700' "$out/model.json" || timed "$times" speech_ravdess $EG train speech --data "$cache" \
+        --init-from "$from" --out "$out" --losses adversarial --steps 700 --checkpoint-every 100 \
+        "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_BAND[@]}" "${SPEECH_VARIANTS[@]}" \
+        --set real_labelled="$manifest" --quiet
+}
+
 train_bundle() {  # RUN CACHE [SPEECH_CACHE]: the speech stages learn from SPEECH_CACHE (default CACHE), the rest
     # from CACHE
     local run=$1 cache=$2 speech_cache=${3:-$2} todo=() pids=() threads model pid speech
@@ -115,6 +133,12 @@ train_bundle() {  # RUN CACHE [SPEECH_CACHE]: the speech stages learn from SPEEC
     for pid in "${pids[@]}"; do wait "$pid"; done
     speech=$run/speech_tuned
     speech_second_stage "$speech" "$run/speech" "$speech_cache" "$run/times.txt"
+    if [ -n "${RAVDESS:-}" ]; then  # 1b. real actors' emotions (ravdess_stage), the speech model the rest uses
+        ravdess_manifest "$run/ravdess.csv"
+        ravdess_stage "$run/speech_ravdess" "$speech" "$speech_cache" "$run/ravdess.csv" "$run/times.txt"
+        speech=$run/speech_ravdess
+        PERCEPTION=(--labelled "$run/ravdess.csv" --telephone-means)
+    fi
     train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
     # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
     # (val) on a copy of the gesture model; 5. the bundle
@@ -143,13 +167,4 @@ ship_bundle() {  # BUNDLE REPORT TIMES : 6. the bundle, as shipped (float16), sc
     rm -f "$assets"/*
     cp "$bundle"/{speech,gesture,extractor}.{json,safetensors} "$bundle"/{MODEL_CARD.md,card.json,SHA256SUMS} "$assets/"
     $EG model-info
-}
-
-wide_speakers_cache() {  # the experiments' corpus with the speakers' own speaking style 2.5 times as wide
-    # (`corpus --speaker-prosody-scale 2.5`) and its windows cache, built or completed when missing:
-    # sets WIDE_CORPUS and WIDE_CACHE (speaker_spread.sh, wide_speakers.sh)
-    WIDE_CORPUS=$WORK/corpus30s
-    WIDE_CACHE=$WORK/cache30s
-    $EG corpus --out "$WIDE_CORPUS" --speakers 30 --speaker-prosody-scale 2.5 --resume --quiet
-    $EG prepare "$WIDE_CORPUS" --out "$WIDE_CACHE" --set split_source=csv+actor --quiet
 }

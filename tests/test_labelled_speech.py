@@ -49,6 +49,10 @@ def test_layouts_name_emotions_and_speakers(tmp_path):
         scan_layout("crema-d", tmp_path / "own")
     with pytest.raises(EmogestureError, match="layout 'beat': unknown"):
         scan_layout("beat", tmp_path / "own")
+    calm = scan_layout("ravdess", tmp_path / "ravdess", calm="neutral")  # RAVDESS's calm heard as neutral
+    assert len(calm) == 12 and [c.emotion for c in calm].count("neutral") == 8
+    with pytest.raises(EmogestureError, match="calm 'sad': one of drop, neutral"):
+        scan_layout("ravdess", tmp_path / "ravdess", calm="sad")
 
 
 def test_speakers_are_split_whole_and_by_the_seed(tmp_path):
@@ -65,6 +69,16 @@ def test_speakers_are_split_whole_and_by_the_seed(tmp_path):
     assert any(o != split for o in others)  # the seed decides who is held out
     with pytest.raises(EmogestureError, match="5 speakers cannot give 3 val and 2 test"):
         assign_speaker_splits(clips, 3, 2)
+    # speakers named (a published split, one balanced by sex), or named beside a count drawn from the rest
+    named = assign_speaker_splits(clips, ["actor02", "actor03"], ["actor05"])
+    assert {c.speaker: c.split for c in named} == {"actor01": "train", "actor02": "val", "actor03": "val",
+                                                   "actor04": "train", "actor05": "test"}
+    mixed = {c.speaker: c.split for c in assign_speaker_splits(clips, 1, ["actor01"], seed=3)}
+    assert mixed["actor01"] == "test" and list(mixed.values()).count("val") == 1
+    with pytest.raises(EmogestureError, match="speaker 'actor09': none of the recordings"):
+        assign_speaker_splits(clips, ["actor09"], 1)
+    with pytest.raises(EmogestureError, match="named for both val and test"):
+        assign_speaker_splits(clips, ["actor01"], ["actor01"])
 
 
 def test_the_manifest_round_trip_and_its_errors(tmp_path):

@@ -253,7 +253,7 @@ def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp
 
     t = np.arange(20 * 16000) / 16000
     hum = (0.1 * (np.sin(2 * np.pi * 3 * t) > -0.3) * np.sin(2 * np.pi * 150 * t)).astype(np.float32)
-    monkeypatch.setattr(real_speech, "load_training_voice", lambda name: hum)
+    monkeypatch.setattr(real_speech, "load_voice", lambda voice: hum)
     encoder = SpeechLatentEncoder.from_run(bundled_model_file("speech"))
     latents, emotions = real_voice_latents(encoder, ["fr_june"], 1, 1.5)
     assert emotions.tolist() == list(range(8)) and latents.emotion.shape == (8, encoder.loaded.config.latent_dim)
@@ -328,3 +328,25 @@ def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():
     assert "sound more like the real voices" not in perceive(windows(held[:5], held[:5]), list(range(5)), both,
                                                         "corpus.wav").summary("auto")
     assert perceive(windows(other, style), list(range(len(other))), plain, "real.wav").real_voices is None
+
+
+def test_labelled_real_speakers_get_voice_means_and_are_trusted_while_the_typical_speaker_stays_the_corpus():
+    train, labels = clusters(60, 0)
+    held, _ = clusters(20, 1)
+    offset = np.random.default_rng(7).normal(0, 4, 48)  # what sets real voices apart
+    real, real_labels = clusters(20, 2, shift=offset)
+    real_speakers = np.arange(len(real_labels)) % 3  # three real speakers
+    held_real, held_real_labels = clusters(10, 3, shift=offset)  # a real speaker never trained on
+    plain = fit_perception(windows(train), labels, labels % 2, windows(held))
+    both = fit_perception(windows(train), labels, labels % 2,
+                          windows(np.concatenate([held, held_real])), real=windows(real), real_emotions=real_labels,
+                          real_speakers=real_speakers,
+                          held_out_emotions=np.concatenate([labels[:len(held)] * 0 + np.repeat(np.arange(8), 20),
+                                                            held_real_labels]))
+    assert both.corpus_voices == 2 and len(both.voice.means) == 5
+    assert (plain.trust(held_real, held_real) == 1.0).mean() < 0.1
+    assert (both.trust(held_real, held_real) == 1.0).mean() > 0.8
+    assert (both.read(held_real, np.zeros((len(held_real), 8))).argmax(1) == held_real_labels).mean() > 0.9
+    assert both.typical_speaker() == plain.typical_speaker()  # the fallback style is a corpus speaker's
+    q = EmotionPerception.from_state(*both.to_state())
+    assert q.corpus_voices == 2 and np.array_equal(q.typical_style(), both.typical_style())

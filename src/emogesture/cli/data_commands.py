@@ -24,9 +24,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--emotion-prosody-scale", type=float, default=1.5,
                    help="strength of the emotions' speech prosody (default 1.5; 1 = the factor table, as in "
                    "corpora built before this default; 0 = every emotion sounds neutral)")
-    p.add_argument("--speaker-prosody-scale", type=float, default=1.0,
-                   help="spread of the speakers' own pitch range, rate, loudness and tilt (default 1, the factor "
-                   "table's; larger: speakers as lively or as flat as some emotions make a voice)")
     p.add_argument("--resume", action="store_true",
                    help="continue or re-check an existing corpus in --out instead of refusing")
     p.add_argument("--overwrite", action="store_true",
@@ -60,11 +57,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("layout", choices=["ravdess", "crema-d", "folders"], help="how the recordings are named")
     p.add_argument("root", type=Path, help="folder holding the recordings (searched recursively)")
     p.add_argument("--out", required=True, type=Path, help="manifest to write (.csv)")
-    p.add_argument("--val-speakers", type=int, default=2, help="speakers held out for val (default 2)")
-    p.add_argument("--test-speakers", type=int, default=2, help="speakers held out for test (default 2)")
+    p.add_argument("--val-speakers", type=_speakers, default=2, metavar="N|NAME,...",
+                   help="speakers held out for val: a number drawn by --seed, or names (e.g. actor02,actor03,actor12; "
+                        "default 2)")
+    p.add_argument("--test-speakers", type=_speakers, default=2, metavar="N|NAME,...",
+                   help="speakers held out for test, the same way (default 2)")
+    p.add_argument("--calm", choices=["drop", "neutral"], default="drop",
+                   help="ravdess: its calm clips left out (default) or heard as neutral")
     p.add_argument("--seed", type=int, default=0, help="seed of the speakers' split (default 0)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing manifest")
     p.set_defaults(func=run_labelled_speech)
+
+
+def _speakers(text: str) -> int | list[str]:
+    """``--val-speakers``/``--test-speakers``: a count, or comma-separated speaker names."""
+    return int(text) if text.strip().isdigit() else [s.strip() for s in text.split(",") if s.strip()]
 
 
 def run_corpus(args: argparse.Namespace) -> int:
@@ -77,7 +84,6 @@ def run_corpus(args: argparse.Namespace) -> int:
         seed=args.seed,
         workers=args.workers,
         emotion_prosody_scale=args.emotion_prosody_scale,
-        speaker_prosody_scale=args.speaker_prosody_scale,
     )
     summary = build_corpus(args.out, config, progress=not args.quiet, resume=args.resume, overwrite=args.overwrite)
     print(summary.format())
@@ -100,8 +106,8 @@ def run_labelled_speech(args: argparse.Namespace) -> int:
     from emogesture.fileio import atomic_output, check_output
 
     check_output(args.out, args.overwrite)
-    clips = assign_speaker_splits(scan_layout(args.layout, args.root), args.val_speakers, args.test_speakers,
-                                  args.seed)
+    clips = assign_speaker_splits(scan_layout(args.layout, args.root, args.calm), args.val_speakers,
+                                  args.test_speakers, args.seed)
     text = manifest_text(clips, args.out.resolve().parent)
     with atomic_output(args.out, args.overwrite) as tmp:
         tmp.write_text(text, encoding="utf-8")

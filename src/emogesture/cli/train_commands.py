@@ -69,6 +69,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--real-voices", type=_names, default=[], metavar="NAME,...",
                    help="real training voices (e.g. fr_june,it_carlo,ru_ivr) given each of the synthetic corpus's "
                         "emotions, each emotion of theirs read by its own mean beside the corpus's")
+    p.add_argument("--labelled", type=Path, metavar="MANIFEST",
+                   help="emotion-labelled real speech (a labelled-speech manifest): each emotion also read by its "
+                        "mean over the train speakers, their voices known, and the trust thresholds measured on "
+                        "the held-out split's real speakers too")
     p.add_argument("--telephone-means", action="store_true",
                    help="also read each emotion by its mean of the train takes heard through a telephone band "
                         "(the read-out only; the trust and the latents animated are unchanged)")
@@ -170,7 +174,8 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     from emogesture.train.perception import calibrate_perception_run
 
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite,
-                                 real_voices=args.real_voices, telephone_means=args.telephone_means)
+                                 real_voices=args.real_voices, telephone_means=args.telephone_means,
+                                 labelled=args.labelled)
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
           f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}"

@@ -16,8 +16,9 @@ train, val or test. Splits go by speaker: no speaker is in two of them, as BEAT2
 Layouts :func:`scan_layout` knows (the published file names; files of other names are left out):
 
 - ``ravdess``: ``03-01-EE-II-SS-RR-AA.wav``, audio-only speech (modality 03, channel 01); emotions 01
-  neutral, 03 happy, 04 sad, 05 angry, 06 fearful, 07 disgust, 08 surprised (02 calm has no counterpart
-  here and is left out); AA the actor.
+  neutral, 03 happy, 04 sad, 05 angry, 06 fearful, 07 disgust, 08 surprised; 02 calm has no counterpart
+  here: heard as neutral (``calm="neutral"``, as RAVDESS's listeners are scored) or left out (``calm="drop"``,
+  the default); AA the actor (odd: male, even: female).
 - ``crema-d``: ``AAAA_SSS_EEE_LL.wav``, AAAA the actor; EEE one of ANG DIS FEA HAP NEU SAD.
 - ``folders``: ``SPEAKER/EMOTION/*.wav`` (or .flac, .ogg, .mp3): one's own recordings.
 """
@@ -42,6 +43,7 @@ from emogesture.errors import EmogestureError, InputFileError
 SPLITS = ("train", "val", "test")
 HEADER = ("path", "emotion", "speaker", "split")
 LAYOUTS = ("ravdess", "crema-d", "folders")
+CALM = ("drop", "neutral")  # what RAVDESS's calm clips are
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3")
 #: Emotion words of labelled corpora -> the emotions here.
 EMOTION_WORDS = {e: e for e in EMOTIONS} | {
@@ -70,20 +72,24 @@ def emotion_name(word: str) -> str | None:
     return EMOTION_WORDS.get(word.strip().lower())
 
 
-def scan_layout(layout: str, root: str | PathLike[str]) -> list[LabelledClip]:
+def scan_layout(layout: str, root: str | PathLike[str], calm: str = "drop") -> list[LabelledClip]:
     """The labelled recordings under ``root`` in a known ``layout`` (module docstring), every one in the train
-    split, sorted by path. Raises a one-line error for an unknown layout or when none is found."""
+    split, sorted by path; ``calm``: RAVDESS's calm clips heard as ``neutral`` or left out (``drop``). Raises a one-line
+    error for an unknown layout or when none is found."""
     root = Path(root)
     if layout not in LAYOUTS:
         raise EmogestureError(f"layout {layout!r}: unknown; known: {', '.join(LAYOUTS)}")
+    if calm not in CALM:
+        raise EmogestureError(f"calm {calm!r}: one of {', '.join(CALM)}")
+    ravdess = _RAVDESS_EMOTIONS | ({"02": "neutral"} if calm == "neutral" else {})
     if not root.is_dir():
         raise InputFileError(root, "not a folder")
     clips = []
     for path in sorted(p for p in root.rglob("*") if p.suffix.lower() in AUDIO_SUFFIXES and p.is_file()):
         if layout == "ravdess":
             m = _RAVDESS.match(path.stem)
-            if m and m.group(1) in _RAVDESS_EMOTIONS:
-                clips.append(LabelledClip(path, _RAVDESS_EMOTIONS[m.group(1)], f"actor{m.group(2)}"))
+            if m and m.group(1) in ravdess:
+                clips.append(LabelledClip(path, ravdess[m.group(1)], f"actor{m.group(2)}"))
         elif layout == "crema-d":
             m = _CREMA.match(path.stem)
             if m and m.group(2) in _CREMA_EMOTIONS:
@@ -98,16 +104,26 @@ def scan_layout(layout: str, root: str | PathLike[str]) -> list[LabelledClip]:
     return clips
 
 
-def assign_speaker_splits(clips: list[LabelledClip], val_speakers: int, test_speakers: int,
+def assign_speaker_splits(clips: list[LabelledClip], val_speakers: int | list[str], test_speakers: int | list[str],
                           seed: int = 0) -> list[LabelledClip]:
-    """``clips`` with their split set by speaker: ``test_speakers`` speakers drawn from
-    ``default_rng(seed)`` to test, ``val_speakers`` more to val, the rest to train."""
+    """``clips`` with their split set by speaker: ``test_speakers`` to test and ``val_speakers`` to val, each
+    a list of speaker names or a count of speakers drawn from ``default_rng(seed)``; the rest to train."""
     speakers = sorted({c.speaker for c in clips})
-    if val_speakers < 0 or test_speakers < 0 or val_speakers + test_speakers >= len(speakers):
-        raise EmogestureError(f"{len(speakers)} speakers cannot give {val_speakers} val and {test_speakers} test "
+    named = [s for group in (val_speakers, test_speakers) if isinstance(group, list) for s in group]
+    if unknown := [s for s in named if s not in speakers]:
+        raise EmogestureError(f"speaker {unknown[0]!r}: none of the recordings is theirs; speakers: {', '.join(speakers)}")
+    if len(set(named)) != len(named):
+        raise EmogestureError("a speaker is named for both val and test (or twice)")
+    counts = [len(g) if isinstance(g, list) else g for g in (val_speakers, test_speakers)]
+    if min(counts) < 0 or sum(counts) >= len(speakers):
+        raise EmogestureError(f"{len(speakers)} speakers cannot give {counts[0]} val and {counts[1]} test "
                               "speakers and keep one to train on")
-    order = [speakers[i] for i in np.random.default_rng(seed).permutation(len(speakers))]
-    split = {s: "test" for s in order[:test_speakers]} | {s: "val" for s in order[test_speakers:test_speakers + val_speakers]}
+    free = [s for s in speakers if s not in named]
+    order = [free[i] for i in np.random.default_rng(seed).permutation(len(free))]
+    split = {}
+    for name, group in (("test", test_speakers), ("val", val_speakers)):
+        chosen = group if isinstance(group, list) else [order.pop(0) for _ in range(group)]
+        split |= {s: name for s in chosen}
     return [replace(c, split=split.get(c.speaker, "train")) for c in clips]
 
 

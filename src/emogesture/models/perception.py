@@ -167,6 +167,8 @@ class EmotionPerception:
     #: telephone band, which only the read-out uses (module docstring); empty without them
     band_labels: list[str] = field(default_factory=list)
     band_means: np.ndarray | None = None  # [B, D]
+    #: how many of ``voice.means`` are the training corpus's speakers (the real speakers' follow); None: all
+    corpus_voices: int | None = None
 
     def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
@@ -234,8 +236,9 @@ class EmotionPerception:
 
     def typical_speaker(self) -> int:
         """Index (into ``voice.means``) of the training speaker whose mean style latent lies nearest the
-        centre of all the speakers' means, in the voice's own distance."""
-        return int(self.voice.distances(self.voice.means.mean(0, keepdims=True))[0].argmin())
+        centre of all the corpus speakers' means, in the voice's own distance."""
+        corpus = self.voice.means[: self.corpus_voices]
+        return int(self.voice.distances(corpus.mean(0, keepdims=True))[0][: len(corpus)].argmin())
 
     def typical_style(self) -> np.ndarray:
         """The mean style latent ``[D]`` of :meth:`typical_speaker`."""
@@ -250,6 +253,8 @@ class EmotionPerception:
         record = {"labels": list(self.labels), "emotion": emotion, "voice": voice, "info": self.info,
                   "temperature": self.temperature}
         arrays = {**emotion_arrays, **voice_arrays}
+        if self.corpus_voices is not None:
+            record["corpus_voices"] = self.corpus_voices
         if self.band_means is not None:
             record["band_labels"] = list(self.band_labels)
             arrays["band_means"] = self.band_means
@@ -270,4 +275,4 @@ class EmotionPerception:
                 raise EmogestureError(f"emotion perception: {len(labels)} telephone-band labels for telephone-band "
                                       f"means of shape {band.shape}; the emotion means are {emotion.means.shape}")
         return cls(list(record["labels"]), emotion, voice, dict(record.get("info", {})),
-                   float(record.get("temperature", 1.0)), labels, band)
+                   float(record.get("temperature", 1.0)), labels, band, record.get("corpus_voices"))
