@@ -332,7 +332,8 @@ def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_g
     import torch
 
     torch.manual_seed(1)
-    save_model(other, "speech", SpeechDisentangler(calibrated.config), calibrated.config, calibrated.metadata)
+    save_model(other, "speech", SpeechDisentangler(calibrated.config), calibrated.config,
+               load_model(trained / "speech", "speech").metadata)
     out = subprocess.run(cli("bundle", "--speech", other, "--gesture", trained / "joint", "--out", tmp_path / "b2"),
                          capture_output=True, text=True)
     assert out.returncode != 0 and "is not the speech model" in out.stderr
