@@ -14,6 +14,8 @@ Usage: python bench/stages.py [--preset tiny|paper] [--precision fp32|bf16] [--s
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import argparse
 import sys
 import time
@@ -120,7 +122,7 @@ def drift(preset: str, seconds: float = 20.0, device: str = "cpu") -> dict:
         pipe = GesturePipeline.from_run(model, device=device, precision=precision)
         wave = pipe.load_speech(fixtures.speech_file(work, seconds))
         enc, starts = pipe.encode(wave)
-        seq = pipe.generate(wave, encoded=(enc, starts), seam_candidates=1)[0]  # no discrete choice
+        seq = pipe.generate(wave, encoded=(enc, starts), generation=replace(pipe.generation, seam_candidates=1))[0]  # no discrete choice
         with torch.no_grad():
             joints = SkeletonBody()(torch.from_numpy(seq.poses), torch.from_numpy(seq.trans)).numpy()
         out[precision] = (np.concatenate([enc.content, enc.emotion, enc.style], 1), joints)

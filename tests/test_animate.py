@@ -3,6 +3,8 @@ the request's checks, and refused outputs. Uses the bundled model and the demo c
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import re
 
 import numpy as np
@@ -25,7 +27,7 @@ def pipe(one_thread):
 def test_animate_writes_the_bytes_the_command_writes(pipe, tmp_path, capsys):
     reported, written = [], []
     request = AnimationRequest(TALK, tmp_path / "py", emotion_from=ANGRY, emotion_weight=0.5, formats=("npz",),
-                               seam_candidates=2)
+                               generation=replace(pipe.generation, seam_candidates=2))
     result = animate(pipe, request, report=reported.append, written=lambda path, seq: written.append(path))
     assert capsys.readouterr().out == ""  # the library prints nothing
     code = main(["generate", str(TALK), "-o", str(tmp_path / "cli"), "--emotion-from", str(ANGRY),
@@ -56,7 +58,6 @@ def test_animate_writes_the_bytes_the_command_writes(pipe, tmp_path, capsys):
     ({"emotion": "anger", "emotion_weight": 1.5}, "--emotion-weight 1.5: must be between 0 and 1"),
     ({"emotion_from": ANGRY, "emotion_weight": -0.1}, "must be between 0 and 1"),
     ({"samples": 0}, "--samples must be at least 1"),
-    ({"seam_candidates": 0}, "--seam-candidates must be at least 1"),
     ({"emotion": "joy"}, "--emotion 'joy': unknown"),
     ({"emotion": "anger", "emotion_from": ANGRY}, "choose one target emotion"),
     ({"formats": ("npz", "gif")}, "--format 'npz,gif'"),

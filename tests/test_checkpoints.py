@@ -43,7 +43,7 @@ def test_a_copy_saved_in_the_stored_type_keeps_a_bundles_float16_weights_byte_fo
     assert stored_weights_dtype(half) == torch.float16
     save_model(tmp_path / "copy", "extractor", half.model, half.config, half.metadata,
                weights_dtype=stored_weights_dtype(half))  # what a calibration does with a bundle's model
-    assert read_meta(tmp_path / "copy", "extractor")["weights_sha256"] == half.meta["weights_sha256"]
+    assert read_meta(tmp_path / "copy", "extractor")["weights_sha256"] == half.weights_sha256
 
 
 def test_arrays_stored_beside_the_weights_come_back_exactly_and_keep_their_type(tmp_path):

@@ -3,6 +3,7 @@
 Uses small untrained models written to disk (the behaviour checked here does not depend on training).
 """
 
+from dataclasses import replace
 import itertools
 import subprocess
 import sys
@@ -90,12 +91,13 @@ def test_bf16_autocast_drifts_little_and_fp32_is_exact(runs):
     assert ea.content.dtype == eb.content.dtype == np.float32
     diff = np.abs(eb.content - ea.content).max() / np.abs(ea.content).max()
     assert 0 < diff < 0.05  # bf16 was used, and stays close
-    a = fp32.generate(wave, seed=1, seam_candidates=1)[0]
-    b = bf16.generate(wave, seed=1, seam_candidates=1)[0]
+    a = fp32.generate(wave, seed=1, generation=replace(fp32.generation, seam_candidates=1))[0]
+    b = bf16.generate(wave, seed=1, generation=replace(bf16.generation, seam_candidates=1))[0]
     assert not np.array_equal(a.poses, b.poses)
     # (the joint drift of a trained model is checked in test_bundled_model.py: an untrained decoder's
     # near-degenerate 6D rotations magnify it)
-    again = GesturePipeline.from_run(runs / "gesture", precision="fp32").generate(wave, seed=1, seam_candidates=1)[0]
+    again = GesturePipeline.from_run(runs / "gesture", precision="fp32")
+    again = again.generate(wave, seed=1, generation=replace(again.generation, seam_candidates=1))[0]
     assert np.array_equal(a.poses, again.poses)
 
 
@@ -118,8 +120,8 @@ def test_a_bf16_pipeline_holds_its_weights_in_bf16_with_the_same_numbers(runs):
         assert all(m.weight.dtype == torch.bfloat16 for m in linears(module))
     assert all(("forward" in vars(m)) == packs_bf16_weights("cpu") for m in linears(held.model.denoiser))
     wave = held.load_speech(runs / "other.wav")
-    a = held.generate(wave, seed=3, seam_candidates=2)[0]
-    b = per_call.generate(wave, seed=3, seam_candidates=2)[0]
+    a = held.generate(wave, seed=3, generation=replace(held.generation, seam_candidates=2))[0]
+    b = per_call.generate(wave, seed=3, generation=replace(per_call.generation, seam_candidates=2))[0]
     assert np.array_equal(a.poses, b.poses) and np.array_equal(a.trans, b.trans)
     # the pipeline that does not own its models puts their float32 weights back after each call
     assert all(m.weight.dtype == torch.float32 for m in linears(per_call.model) + linears(per_call.speech.model))
@@ -256,9 +258,9 @@ def test_a_single_window_draws_one_candidate(runs):
     pipe = GesturePipeline.from_run(runs / "gesture")
     wave = pipe.load_speech(runs / "long.wav")[: 10 * 16000]  # exactly one 10-s window
     drawn = []
-    four = pipe.generate(wave, seed=4, seam_candidates=4, progress=drawn.append)[0]
+    four = pipe.generate(wave, seed=4, generation=replace(pipe.generation, seam_candidates=4), progress=drawn.append)[0]
     assert sum(drawn) == 1
-    np.testing.assert_array_equal(four.poses, pipe.generate(wave, seed=4, seam_candidates=1)[0].poses)
+    np.testing.assert_array_equal(four.poses, pipe.generate(wave, seed=4, generation=replace(pipe.generation, seam_candidates=1))[0].poses)
 
 
 def test_batch_equals_single(runs):
@@ -331,16 +333,16 @@ def test_seam_candidates_avoid_the_worst_seam(runs):
     # the one-candidate draw) and stay deterministic
     pipe = GesturePipeline.from_run(runs / "gesture")
     wave = pipe.load_speech(runs / "long.wav")[: 30 * 16000]
-    one = pipe.generate(wave, seed=1, seam_candidates=1)[0]
-    four = pipe.generate(wave, seed=1, seam_candidates=4)[0]
-    assert np.array_equal(four.poses, pipe.generate(wave, seed=1, seam_candidates=4)[0].poses)
+    one = pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=1))[0]
+    four = pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=4))[0]
+    assert np.array_equal(four.poses, pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=4))[0].poses)
     starts_s = pipe.encode(wave, HOP_SECONDS)[1]  # where generation places its windows, and so its seams
     with torch.no_grad():
         jumps = [seam_jumps(SkeletonBody()(torch.from_numpy(q.poses), torch.from_numpy(q.trans)).numpy(), starts_s)
                  for q in (one, four)]
     assert jumps[1]["max_seam_jump_m"] <= jumps[0]["max_seam_jump_m"] + 1e-4
     with pytest.raises(EmogestureError, match="seam_candidates"):
-        pipe.generate(wave, seam_candidates=0)
+        pipe.generate(wave, generation=replace(pipe.generation, seam_candidates=0))
 
 
 def test_largest_joint_jumps():

@@ -5,6 +5,7 @@ The short version of experiments/gesture_model.sh: every variant trains a few st
 Also unit tests of the pieces of that report (seam jumps, edit targets, checks).
 """
 
+from dataclasses import replace
 import dataclasses
 import json
 import subprocess
@@ -273,7 +274,7 @@ def test_the_papers_design_trains_and_generates_through_the_pipeline(trained):
     pipe = GesturePipeline.from_run(trained / "paper")
     wave, _ = load_audio(next((trained / "root" / "wave16k").glob("*.wav")))
     fast = dataclasses.replace(pipe.generation, num_inference_steps=5)
-    a, b = (pipe.generate(wave, seed=s, seam_candidates=2, generation=fast)[0] for s in (0, 1))
+    a, b = (pipe.generate(wave, seed=s, generation=replace(fast, seam_candidates=2))[0] for s in (0, 1))
     assert len(a.poses) == int(round(len(wave) / 16000 * 30)) and np.isfinite(a.poses).all()
     assert not np.allclose(a.poses, b.poses)  # the seed draws the motion
 
@@ -321,7 +322,7 @@ def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_g
     assert out.returncode == 0, out.stderr[-2000:]
     calibrated, gesture = load_model(tmp_path / "calibrated", "speech"), load_model(trained / "joint", "gesture")
     # the calibration's arrays live in the weights file, so its checksum changed; it names the file it came from
-    assert calibrated.meta["weights_sha256"] != load_model(trained / "speech", "speech").meta["weights_sha256"]
+    assert calibrated.weights_sha256 != load_model(trained / "speech", "speech").weights_sha256
     assert trained_with(gesture, calibrated) and calibrated.tensors
     out = subprocess.run(cli("bundle", "--speech", tmp_path / "calibrated", "--gesture", trained / "joint",
                              "--out", tmp_path / "bundle"), capture_output=True, text=True)

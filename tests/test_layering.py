@@ -20,3 +20,20 @@ def test_importing_the_package_touches_nothing(tmp_path):
     code = "import os, emogesture, emogesture.data.beat, emogesture.config; print(sorted(os.listdir('.')))"
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_public_api_is_the_package_s_and_loads_on_first_use():
+    """``from emogesture import animate, AnimationRequest, GesturePipeline, GenerationConfig`` gives the
+    pipeline's own objects; ``import emogesture`` alone loads no torch; an unknown name is an AttributeError."""
+    code = ("import sys, emogesture\n"
+            "assert 'torch' not in sys.modules\n"
+            "from emogesture import animate, AnimationRequest, GesturePipeline, GenerationConfig\n"
+            "from emogesture.pipeline.animate import animate as a, AnimationRequest as r\n"
+            "from emogesture.pipeline.generate import GesturePipeline as p\n"
+            "from emogesture.models.generation import GenerationConfig as g\n"
+            "assert (animate, AnimationRequest, GesturePipeline, GenerationConfig) == (a, r, p, g)\n"
+            "assert set(emogesture.__all__) >= {'animate', 'AnimationRequest', 'GesturePipeline', 'GenerationConfig'}\n"
+            "try:\n    emogesture.nothing_here\nexcept AttributeError as e:\n    print(e)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "no attribute 'nothing_here'" in out.stdout

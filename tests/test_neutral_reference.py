@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import json
 
 import numpy as np
@@ -65,7 +67,8 @@ def test_a_voice_read_against_its_own_neutral_is_heard_as_the_corpus_would_be(pe
                                             + heard_probabilities(relative, perception)), rtol=1e-6)
     heard = perceive(enc, [0.0] * len(enc.emotion), perception, "talk.wav", relative, "calm.wav")
     np.testing.assert_array_equal(heard.trust, perception.trust(relative.emotion, relative.style))
-    assert "read against the speaker's neutral voice in calm.wav" in heard.summary("auto")
+    assert "read against the speaker's neutral voice in calm.wav" in heard.details("auto")
+    assert "against calm.wav;" in heard.summary("auto")
     assert json.loads(heard.to_json())["neutral_reference"] == "calm.wav"
     assert "neutral_reference" not in json.loads(perceive(enc, [0.0] * len(enc.emotion), perception, "t").to_json())
     # a recording mostly beyond the range (generate then points to --neutral-from); one within it is not
@@ -109,7 +112,7 @@ def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsy
     assert main([*args, "-o", str(tmp_path)]) == 0
     assert main([*args, "-o", str(tmp_path), "--neutral-from", str(calm)]) == 0
     out = capsys.readouterr().out
-    assert f"read against the speaker's neutral voice in {calm}" in out
+    assert "heard" in out and "against calm.wav;" in out  # the one-line summary names the reference
     plain = np.load(tmp_path / "talk_seed0_0.npz")["poses"]
     against = np.load(tmp_path / "talk_neutral-calm_seed0_0.npz")["poses"]
     assert plain.shape == against.shape and np.abs(plain - against).max() > 1e-3  # the gesture model hears it
@@ -131,9 +134,11 @@ def test_a_calm_stretch_of_the_speech_itself_is_a_reference_too(tmp_path, capsys
     sf.write(calm, wave[-10 * rate:], rate)
     args = ["generate", str(talk), "--format", "npz", "--seam-candidates", "1", "--device", "cpu", "--quiet"]
     assert main([*args, "-o", str(tmp_path), "--neutral-from", str(calm)]) == 0
-    assert main([*args, "-o", str(tmp_path), "--neutral-span", "10.475-20.475"]) == 0
+    assert main([*args, "-o", str(tmp_path), "--neutral-span", "10.475-20.475", "--verbose"]) == 0
     out = capsys.readouterr().out
-    assert f"read against the speaker's neutral voice in {talk} 10.475-20.475 s" in out
+    assert "against talk.flac 10.475-20.475 s;" in out
+    assert "read against the speaker's neutral voice in" in out  # --verbose: the details under the summary
+    assert max(len(line) for line in out.splitlines() if "seed0" not in line) <= 160
     from_file = np.load(tmp_path / "talk_neutral-calm_seed0_0.npz")["poses"]
     from_span = np.load(tmp_path / "talk_neutral-talk-10.475-20.475s_seed0_0.npz")["poses"]
     np.testing.assert_allclose(from_span, from_file, atol=1e-5)  # the same samples, the same reference
@@ -155,13 +160,14 @@ def test_generate_suggests_a_reference_only_for_its_own_emotion_of_an_unfamiliar
     from emogesture.pipeline.perception_report import PerceivedEmotion
 
     pipe = GesturePipeline.from_run(None, device="cpu")
+    one = replace(pipe.generation, seam_candidates=1)
     talk = DEMO_CLIPS / "talk.flac"
-    plain = animate(pipe, AnimationRequest(talk, tmp_path / "a", formats="npz", seam_candidates=1))
+    plain = animate(pipe, AnimationRequest(talk, tmp_path / "a", formats="npz", generation=one))
     assert not any(NEUTRAL_HINT in line for line in plain.summaries)  # the demo voice is a familiar one
     monkeypatch.setattr(PerceivedEmotion, "unlike_training_voices", property(lambda self: True))
-    unfamiliar = animate(pipe, AnimationRequest(talk, tmp_path / "b", formats="npz", seam_candidates=1))
+    unfamiliar = animate(pipe, AnimationRequest(talk, tmp_path / "b", formats="npz", generation=one))
     assert unfamiliar.summaries[0].endswith(NEUTRAL_HINT)
-    label = animate(pipe, AnimationRequest(talk, tmp_path / "c", emotion="anger", formats="npz", seam_candidates=1))
+    label = animate(pipe, AnimationRequest(talk, tmp_path / "c", emotion="anger", formats="npz", generation=one))
     assert not any(NEUTRAL_HINT in line for line in label.summaries)
 
 
@@ -178,11 +184,11 @@ def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
     video, _, rows, summary, files = session.run(str(talk), "auto", "", 1.0, None, None, 0, 1, "smplx",
                                                  neutral_from=str(calm))
     assert "_neutral-calm_" in video and rows
-    assert "read against the speaker's neutral voice in calm.wav" in summary and str(tmp_path) not in summary
+    assert "against calm.wav" in summary and str(tmp_path) not in summary
     video, _, _, summary, _ = session.run(str(talk), "auto", "", 1.0, None, None, 0, 1, "smplx",
                                           neutral_span=" 10-20 ")  # a calm stretch of the speech itself
     assert "_neutral-talk-10-20s_" in video
-    assert "read against the speaker's neutral voice in talk.flac 10-20 s" in summary, summary
+    assert "read against the speaker's neutral voice in talk.flac 10-20 s" in summary, summary  # the details too
 
 
 def test_a_stream_reads_the_speech_against_the_reference_from_its_next_update(one_thread):

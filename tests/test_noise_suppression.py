@@ -118,8 +118,8 @@ def test_generate_says_when_it_took_noise_out(tmp_path):
     quiet, noisy = _speech(12.0), _noisy(_speech(12.0), 10.0)
     heard = [pipe.perceive(*pipe.encode(wave), source=name)
              for wave, name in ((quiet, "quiet.wav"), (noisy, "noisy.wav"))]
-    assert heard[0].noise_suppressed == 0.0 and "background noise" not in heard[0].summary("auto")
-    assert heard[1].noise_suppressed == 1.0 and "steady background noise taken out (100%)" in heard[1].summary("auto")
+    assert heard[0].noise_suppressed == 0.0 and "background noise" not in " ".join(heard[0].details("auto"))
+    assert heard[1].noise_suppressed == 1.0 and "steady background noise taken out (100%)" in " ".join(heard[1].details("auto"))
     assert '"noise_suppressed": 1.0' in heard[1].to_json()
 
 
@@ -153,7 +153,7 @@ def test_the_encoder_fills_digital_silence_and_says_so(tmp_path):
     joined = np.concatenate([speech, np.zeros(16000, np.float32), speech])
     heard = pipe.perceive(*pipe.encode(joined), source="joined.wav")
     assert 0.9 <= heard.digital_silence_s <= 1.0
-    assert "digital silence heard as the recording's own quiet" in heard.summary("auto")
+    assert "digital silence heard as the recording's own quiet" in " ".join(heard.details("auto"))
     assert '"digital_silence_s": ' in heard.to_json()
     pipe.speech.fill_digital_silence = False
     try:
@@ -163,4 +163,4 @@ def test_the_encoder_fills_digital_silence_and_says_so(tmp_path):
     assert raw.digital_silence_s == 0.0
     assert np.abs(raw.emotion - pipe.encode(joined)[0].emotion).mean() > 1e-4
     plain = pipe.perceive(*pipe.encode(speech), source="plain.wav")
-    assert plain.digital_silence_s == 0.0 and "digital silence" not in plain.summary("auto")
+    assert plain.digital_silence_s == 0.0 and "digital silence" not in " ".join(plain.details("auto"))

@@ -321,12 +321,12 @@ def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():
     assert np.allclose(auto_emotion(other.astype(np.float32), style, both)[trusted], moved[trusted], atol=1e-4)
     # generate's message and report say so; the corpus's own windows do not
     heard = perceive(windows(other, style), list(range(len(other))), both, "real.wav")
-    assert (heard.real_voices > 0.5).mean() > 0.9 and "sound more like the real voices" in heard.summary("auto")
+    assert (heard.real_voices > 0.5).mean() > 0.9 and "sound more like the real voices" in " ".join(heard.details("auto"))
     assert '"real_voices"' in heard.to_json()
     familiar = perceive(windows(held, held), list(range(len(held))), both, "corpus.wav")
     assert (familiar.real_voices < 0.5).mean() > 0.95
-    assert "sound more like the real voices" not in perceive(windows(held[:5], held[:5]), list(range(5)), both,
-                                                        "corpus.wav").summary("auto")
+    assert "sound more like the real voices" not in " ".join(perceive(windows(held[:5], held[:5]), list(range(5)),
+                                                                      both, "corpus.wav").details("auto"))
     assert perceive(windows(other, style), list(range(len(other))), plain, "real.wav").real_voices is None
 
 
@@ -350,3 +350,21 @@ def test_labelled_real_speakers_get_voice_means_and_are_trusted_while_the_typica
     assert both.typical_speaker() == plain.typical_speaker()  # the fallback style is a corpus speaker's
     q = EmotionPerception.from_state(*both.to_state())
     assert q.corpus_voices == 2 and np.array_equal(q.typical_style(), both.typical_style())
+
+
+def test_the_summary_is_one_short_line_whatever_the_names():
+    """generate's line per recording stays within 160 characters with long file names, a neutral reference, a
+    dozen windows and every blend; the details name the reference's full path."""
+    from emogesture.pipeline.perception_report import PerceivedEmotion
+
+    n = 12
+    name = "/some/very/long/folder/name/" + "an interview of somebody, recorded badly" * 3 + ".wav"
+    heard = PerceivedEmotion(name, [7.0 * i for i in range(n)], ["surprise"] * n, np.full((n, 8), 0.125),
+                             np.full((n, 2), 2.0), np.zeros(n), noise_suppressed=0.5, digital_silence_s=3.0,
+                             neutral_reference=name.replace(".wav", " calm.wav") + " 10.475-20.475 s")
+    for mode in ("auto", "own"):
+        line = heard.summary(mode)
+        assert len(line) <= 160 and "\n" not in line, line
+        assert "…" in line and line.count("surprise") == 1 and "10.475-20.475 s" in line
+    assert "auto: 12 toward neutral, 12 fallback style" in heard.summary("auto")
+    assert any(heard.neutral_reference in d for d in heard.details("auto")) and len(heard.details("auto")) == 5

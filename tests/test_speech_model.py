@@ -9,9 +9,9 @@ import torch.nn.functional as F
 from emogesture.errors import ConfigError
 from emogesture.models import speech_losses as sl
 from emogesture.models.speech import SpeechDisentangler, SpeechEncoding, SpeechModelConfig, flops_per_window
-import emogesture.models.vit as vit_module
-from emogesture.models.vit import (BLOCKED_ATTENTION_MIN_TOKENS, FLOAT32_TRAINING_ATTENTION, AudioViT, Mlp,
-                                  ViTConfig, attention)
+import emogesture.kernels as kernels
+from emogesture.kernels import BLOCKED_ATTENTION_MIN_TOKENS, FLOAT32_TRAINING_ATTENTION, attention
+from emogesture.models.vit import AudioViT, Mlp, ViTConfig
 
 
 def _gen(seed: int) -> torch.Generator:
@@ -83,13 +83,13 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
     n = BLOCKED_ATTENTION_MIN_TOKENS + 37  # not a whole number of query blocks
     q, k, v = (torch.randn(2, 3, n, 16, generator=g) for _ in range(3))
     with torch.inference_mode():  # a CPU with AMX tiles takes torch's fused kernel
-        monkeypatch.setattr(vit_module, "amx_bf16", lambda: True)
+        monkeypatch.setattr(kernels, "amx_bf16", lambda: True)
         assert torch.equal(attention(*(x.bfloat16() for x in (q, k, v))),
                            F.scaled_dot_product_attention(*(x.bfloat16() for x in (q, k, v))))
-    monkeypatch.setattr(vit_module, "amx_bf16", lambda: False)  # the blocked path, whatever this CPU
+    monkeypatch.setattr(kernels, "amx_bf16", lambda: False)  # the blocked path, whatever this CPU
     if block_scores:  # blocks smaller than one sample: one sample at a time, 2 of 3 heads, 64 queries
-        monkeypatch.setattr(vit_module, "ATTENTION_BLOCK_SCORES", block_scores)
-        monkeypatch.setattr(vit_module, "ATTENTION_QUERY_BLOCK", 64)
+        monkeypatch.setattr(kernels, "ATTENTION_BLOCK_SCORES", block_scores)
+        monkeypatch.setattr(kernels, "ATTENTION_QUERY_BLOCK", 64)
     exact = F.scaled_dot_product_attention(q, k, v)
     with torch.inference_mode():
         blocked = attention(q.bfloat16(), k.bfloat16(), v.bfloat16()).float()
@@ -120,7 +120,7 @@ def test_blocked_bf16_attention_agrees_with_torch_and_is_taken_only_where_it_is_
 
 @pytest.mark.parametrize("amx", [False, True])
 def test_bf16_training_attends_in_float32_below_the_threshold_and_in_bf16_above(amx, monkeypatch):
-    monkeypatch.setattr(vit_module, "amx_bf16", lambda: amx)  # with or without AMX tiles, whatever this CPU
+    monkeypatch.setattr(kernels, "amx_bf16", lambda: amx)  # with or without AMX tiles, whatever this CPU
     g = torch.Generator().manual_seed(1)
     tokens, width = FLOAT32_TRAINING_ATTENTION
 
@@ -196,7 +196,7 @@ def test_mlp_with_bf16_weights_applies_the_gelu_inside_the_product(pack):
 
 
 def test_dropout_masks_keep_the_rate_and_the_expectation():
-    from emogesture.models.vit import Dropout
+    from emogesture.kernels import Dropout
 
     drop = Dropout(0.1)
     x = torch.ones(400, 999, requires_grad=True)

@@ -24,7 +24,7 @@ from safetensors import safe_open
 from safetensors.torch import save_file
 from torch import nn
 
-from emogesture import __version__
+from emogesture.version import __version__
 from emogesture.config import from_dict, to_dict
 from emogesture.errors import ConfigError, EmogestureError, InputFileError, OutputExistsError
 from emogesture.fileio import atomic_output, fsync_dir
@@ -72,9 +72,11 @@ class LoadedModel:
     config: Any
     #: what the file stores beside weights and config (a :class:`ModelMetadata` of the model's kind)
     metadata: ModelMetadata
-    #: the whole JSON as read
-    meta: dict
     path: Path
+    #: what the file says it holds: ``speech``, ``gesture`` or ``extractor`` ("" for a model not read from a file)
+    kind: str = ""
+    #: the SHA-256 of the weights file, as its JSON records it ("" for a model not read from a file)
+    weights_sha256: str = ""
     #: how a gesture model generates (the ``generation`` section of its JSON); None for other kinds
     generation: GenerationConfig | None = None
     #: arrays the weights file stores beside the network's (a calibration's, by name: :func:`save_model`)
@@ -317,7 +319,8 @@ def load_model(path: str | PathLike[str], kind: str, *, name: str = "model", dev
         model.to(device).eval()
     except torch.cuda.OutOfMemoryError:
         raise EmogestureError(f"{meta_path}: the model does not fit in the memory of {device}") from None
-    return LoadedModel(model, config, metadata, meta, meta_path, generation, tensors)
+    return LoadedModel(model, config, metadata, meta_path, kind=str(meta.get("kind", kind)),
+                       weights_sha256=str(meta.get("weights_sha256", "")), generation=generation, tensors=tensors)
 
 
 def _stored_configs(kind: str, meta: dict) -> tuple[Any, GenerationConfig | None]:
@@ -402,7 +405,7 @@ def trained_splits(loaded: LoadedModel) -> list[str]:
     models and extractors (which only ever trained on it)."""
     if loaded.metadata.train_splits is not None:
         return list(loaded.metadata.train_splits)
-    if loaded.meta.get("kind") in ("gesture", "extractor"):
+    if loaded.kind in ("gesture", "extractor"):
         return ["train"]
     try:
         blob = json.loads((Path(loaded.path).parent / "run.json").read_text())
@@ -427,7 +430,7 @@ def trained_with(gesture: LoadedModel, speech: LoadedModel) -> bool:
     True for a gesture model that names none."""
     want = gesture.metadata.speech_weights_sha256
     calibrated_from = ((speech.metadata.emotion_perception or {}).get("info") or {}).get("calibrated_from")
-    return not want or want in (speech.meta["weights_sha256"], calibrated_from)
+    return not want or want in (speech.weights_sha256, calibrated_from)
 
 
 def calibration_splits(loaded: LoadedModel) -> dict[str, str]:

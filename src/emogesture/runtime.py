@@ -7,7 +7,7 @@ Under bf16 the matrix products of the audio encoders, the denoiser and the motio
 bf16; their outputs are returned in float32. The drift this causes is measured by ``bench/``.
 
 CPU speed-ups beyond plain torch (oneDNN's packed bf16 Linear weights and fused Linear + GELU, through
-torch's private ``torch.ops.mkldnn`` ops; a blocked bf16 attention, :func:`emogesture.models.vit.attention`)
+torch's private ``torch.ops.mkldnn`` ops; a blocked bf16 attention, :func:`emogesture.kernels.attention`)
 are all switched by :func:`acceleration_enabled`: off with ``EMOGESTURE_ACCELERATION=0`` in the
 environment (or :func:`set_acceleration`), and off by themselves where this torch lacks the private ops
 (:func:`private_ops_available`). Plain torch then runs the same arithmetic, within bf16 rounding.
@@ -139,7 +139,7 @@ def private_ops_available() -> bool:
 def amx_bf16() -> bool:
     """True on a CPU with AMX bf16 tiles (Intel Xeon from Sapphire Rapids on): its bf16 products ran
     about 2800 GFLOP/s on 2 cores, 7 x an AVX-512-bf16 CPU's, and torch's fused attention kernel is
-    the faster one there (:func:`emogesture.models.vit.attention`)."""
+    the faster one there (:func:`emogesture.kernels.attention`)."""
     return "amx_bf16" in cpu_flags()
 
 

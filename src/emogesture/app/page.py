@@ -96,15 +96,20 @@ class AppSession:
         report = json.loads(result.perception_path.read_text())[0]
         files = [str(p) for sample in result.files for p in sample] + [str(result.perception_path)]
         note = "" if "fbx" in self.formats else " (fbx needs Blender on the server)"
-        summaries = [line.replace(str(request.speech), request.speech.name) for line in result.summaries]
-        for other in (request.emotion_from, request.neutral_from):
-            if other is not None:
-                summaries = [line.replace(str(other), other.name) for line in summaries]
-        summaries = [line.replace("(--neutral-from)", "(\"the same speaker without emotion\", under \"from other "
-                                  "recordings\")").replace("(--neutral-span START-END)", "(its calm seconds, under "
-                                                            "\"from other recordings\")") for line in summaries]
+        ui = {"--neutral-from": "\"the same speaker without emotion\" (under \"from other recordings\")",
+              "--neutral-span START-END": "its calm seconds (under \"from other recordings\")",
+              "--emotion own": "the emotion \"own\""}
+        blocks = []
+        for line, more in zip(result.summaries, result.details):  # the summary, then the details behind it
+            text = "\n".join([line] + [f"- {d}" for d in more])
+            for flag, words in ui.items():
+                text = text.replace(flag, words)
+            for path in (request.speech, request.emotion_from, request.neutral_from):  # the server's paths
+                if path is not None:
+                    text = text.replace(str(path), path.name)
+            blocks.append(text)
         return (str(video), {"glb": _file_url(glb), "audio": _file_url(listen)}, perception_rows(report),
-                "\n\n".join(summaries) + note, files)
+                "\n\n".join(blocks) + note, files)
 
 
 def build_app(session: AppSession):

@@ -57,6 +57,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--skip-existing", action="store_true",
                    help="leave existing outputs as they are and write only the missing ones (resumes a batch)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--verbose", action="store_true",
+                   help="after each recording's one-line summary, how it was heard and why windows were blended")
     p.set_defaults(func=run_generate)
 
     p = sub.add_parser("export", help="turn a BEAT2/SMPL-X .npz (generated or your own mocap) into bvh/glb/fbx/mp4",
@@ -74,26 +76,33 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_generate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from emogesture.errors import EmogestureError
     from emogesture.pipeline.animate import AnimationRequest
     from emogesture.pipeline.batch import animate_files, batch_summary, speech_files
     from emogesture.pipeline.generate import GesturePipeline
     from emogesture.runtime import resolve_device, set_acceleration
 
+    if args.seam_candidates is not None and args.seam_candidates < 1:
+        raise EmogestureError("--seam-candidates must be at least 1")
     template = AnimationRequest(args.speech[0], args.out, emotion=args.emotion or "auto",
                                 emotion_weight=args.emotion_weight, emotion_from=args.emotion_from,
                                 style_from=args.style_from, neutral_from=args.neutral_from,
                                 neutral_span=args.neutral_span, formats=args.format,
                                 seed=args.seed, samples=args.samples,
-                                seam_candidates=args.seam_candidates, overwrite=args.overwrite,
+                                overwrite=args.overwrite,
                                 skip_existing=args.skip_existing, skeleton=args.skeleton)
     speeches = speech_files(args.speech)
     if args.no_acceleration:
         set_acceleration(False)
     device = resolve_device(args.device)
     pipe = GesturePipeline.from_run(args.model, args.speech_model, device=device, precision=args.precision)
+    if args.seam_candidates is not None:
+        template.generation = replace(pipe.generation, seam_candidates=args.seam_candidates)
     items = animate_files(pipe, speeches, template, progress=not args.quiet and sys.stderr.isatty(), report=print,
                           written=lambda path, seq: print(f"{path}  ({seq.num_frames} frames, {seq.duration:.2f} s)"),
-                          finished=_finished)
+                          finished=_finished, verbose=args.verbose)
     if len(items) > 1:
         print(batch_summary(items))
     return 2 if any(item.error for item in items) else 0

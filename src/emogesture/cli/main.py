@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from emogesture import __version__
+from emogesture.version import __version__
 from emogesture.cli import (app_commands, data_commands, eval_commands, generate_commands, live_commands,
                             train_commands)
 from emogesture.errors import EmogestureError

@@ -33,7 +33,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from emogesture import __version__
+from emogesture.version import __version__
 from emogesture.config import to_dict
 from emogesture.audio import RECORDING_NORMS, FbankConfig, kaldi_fbank, load_audio, normalise_recording
 from emogesture.data.beat import SPLITS, actor_split, parse_take_name, read_sem, read_split_csv, sem_frame_scores

@@ -267,7 +267,10 @@ def gesture_models_markdown(r: dict) -> str:
     lines = [gesture_markdown(r["table"]).rstrip(), "",
              "Models: " + ", ".join(f"{k} = {r['variants'][k]} (step {r['steps'][k]})" for k in r["models"]),
              f"Emotion edit: every window of `{r['edit_model']}` re-generated with another emotion's mean latent "
-             "(seeded target, never its own); its GA is against the target.", "",
+             "(seeded target, never its own); its GA is against the target.",
+             "Generation: each window drawn by the engine `generate` runs (residual noise, timing guidance, filters, "
+             "the model's own settings), alone: no seams (a recording's windows are joined in the long-audio check "
+             "below), and no quiet-window settling (every window of the corpus holds speech).", "",
              "## Motion prior reconstruction (upper-body joint error, m)", "", "| source | error | / mean pose |",
              "|---|---|---|"]
     base = r["prior_reconstruction"]["mean pose"]["joint_error_m"]

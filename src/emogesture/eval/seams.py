@@ -6,7 +6,7 @@ whole takes. Used by :mod:`emogesture.eval.gesture_models`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -170,7 +170,8 @@ def sequence_joints(pipe: GesturePipeline, seq: SMPLXSequence) -> np.ndarray:
 def generated_joints(pipe: GesturePipeline, wave: np.ndarray, seed: int, hop_seconds: float = HOP_SECONDS,
                      seam_candidates: int = 4) -> tuple[np.ndarray, list[float]]:
     """Generate for a waveform -> joint positions ``[T, 55, 3]`` and its windows' start times (s)."""
-    seq = pipe.generate(wave, seed=seed, hop_seconds=hop_seconds, seam_candidates=seam_candidates)[0]
+    seq = pipe.generate(wave, seed=seed, generation=replace(pipe.generation, hop_seconds=hop_seconds,
+                                                            seam_candidates=seam_candidates))[0]
     starts = window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, hop_seconds)
     return sequence_joints(pipe, seq), starts.tolist()
 
@@ -212,8 +213,8 @@ def long_audio_check(pipe: GesturePipeline, stretches: list[LongAudio], seed: in
     for stretch in stretches:
         mine = []
         for s in range(seed, seed + SEAM_SEEDS):
-            drawn, starts = pipe.draw_windows(stretch.wave, seed=s, hop_seconds=hop_seconds,
-                                              seam_candidates=unselected)
+            drawn, starts = pipe.draw_windows(stretch.wave, seed=s, generation=replace(
+                pipe.generation, hop_seconds=hop_seconds, seam_candidates=unselected))
             windows = drawn[0, :, 0]
             joints = sequence_joints(pipe, pipe.to_sequence(stitch(windows, starts, num_frames)))
             starts_s = [st / FPS for st in starts]

@@ -21,7 +21,7 @@ def network_digest(encoder: SpeechLatentEncoder) -> str:
     """12 hex digits naming the speech network's weights: its file's checksum, or where a perception calibration
     added arrays to the file, the checksum of the file it was copied from (the latents are the same)."""
     info = ((encoder.loaded.metadata.emotion_perception or {}).get("info") or {})
-    return str(info.get("calibrated_from") or encoder.loaded.meta["weights_sha256"])[:12]
+    return str(info.get("calibrated_from") or encoder.loaded.weights_sha256)[:12]
 
 
 def encode_split(encoder: SpeechLatentEncoder, cache: WindowsCache, split: str,

@@ -24,7 +24,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from emogesture.errors import ConfigError
-from emogesture.models.vit import LN_EPS, Attention, CrossAttention, Mlp, attention, init_transformer_weights
+from emogesture.kernels import attention
+from emogesture.models.vit import LN_EPS, Attention, CrossAttention, Mlp, init_transformer_weights
 
 
 @dataclass

@@ -16,6 +16,7 @@ Example (the bundled model; writes ``out/talk_emotion-happiness_seed0_0.npz`` an
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
 from emogesture.errors import EmogestureError
 from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, parse_formats
 from emogesture.fileio import atomic_output, check_output
+from emogesture.models.generation import GenerationConfig
 from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.neutral_reference import MIN_SECONDS, reference_name
@@ -64,9 +66,13 @@ def parse_span(text: str) -> tuple[float, float]:
 
 #: added to the speech's summary when its own emotion, read alone, comes from a voice mostly unlike the
 #: training voices
-NEUTRAL_HINT = ("; heard alone, a real person's even voice can sound emotional to this model: a calm recording "
-                "of the same speaker (--neutral-from), or a calm stretch of this one (--neutral-span START-END), "
-                "reads its emotion against their own voice")
+NEUTRAL_HINT = "; try --neutral-from"
+#: the longest line ``--verbose`` prints
+LINE_CHARS = 120
+#: the detail behind :data:`NEUTRAL_HINT`
+NEUTRAL_DETAIL = ("heard alone, a real person's even voice can sound emotional to this model: a calm recording of the "
+                  "same speaker (--neutral-from), or a calm stretch of this one (--neutral-span START-END), reads "
+                  "its emotion against their own voice")
 
 @dataclass
 class AnimationRequest:
@@ -79,8 +85,8 @@ class AnimationRequest:
     ``emotion_from`` recording (1); None means 1, and a weight without either target is an error.
     ``formats``: names of :data:`~emogesture.export.FORMATS` (or one comma-separated string).
     ``samples``: how many different sequences to draw from ``seed`` (files ``_0``, ``_1``, ...);
-    ``seam_candidates``: samples drawn per window, one kept per window so that the worst seam moves
-    least (1 = off; None = the model's setting). Paths may be given as strings; they are held as :class:`~pathlib.Path`.
+    ``generation``: the generation settings of this request (None: the model's own,
+    :attr:`GesturePipeline.generation`), e.g. ``replace(pipe.generation, seam_candidates=1)``. Paths may be given as strings; they are held as :class:`~pathlib.Path`.
     """
 
     speech: Path
@@ -98,7 +104,7 @@ class AnimationRequest:
     formats: tuple[str, ...] = DEFAULT_FORMATS
     seed: int = 0
     samples: int = 1
-    seam_candidates: int | None = None
+    generation: GenerationConfig | None = None
     overwrite: bool = False
     #: leave outputs that exist as they are and write only the missing ones (nothing at all when every
     #: output exists): how an interrupted batch resumes; generation is reproducible, so they are the files
@@ -141,8 +147,6 @@ class AnimationRequest:
             raise EmogestureError(f"--emotion-weight {self.weight}: must be between 0 and 1")
         if self.samples < 1:
             raise EmogestureError("--samples must be at least 1")
-        if self.seam_candidates is not None and self.seam_candidates < 1:
-            raise EmogestureError("--seam-candidates must be at least 1")
         if self.out.exists() and not self.out.is_dir():
             raise EmogestureError(f"{self.out}: is a file; --out must be a folder")
         rig_named(self.skeleton)
@@ -228,7 +232,8 @@ class AnimationRequest:
 @dataclass
 class AnimationResult:
     """What :func:`animate` wrote and made: per sample the files in format order, the perception report
-    (the speech first, then the ``emotion_from`` recording if any) and its one-line summaries, and the
+    (the speech first, then the ``emotion_from`` recording if any), its one-line summaries and the details
+    behind each (:meth:`PerceivedEmotion.details`), and the
     ``samples`` SMPL-X sequences of ``round(duration * fps)`` frames."""
 
     files: list[list[Path]]
@@ -236,6 +241,7 @@ class AnimationResult:
     perceived: list[PerceivedEmotion]
     summaries: list[str]
     sequences: list[SMPLXSequence]
+    details: list[list[str]] = field(default_factory=list)
     #: True when ``skip_existing`` found every output in place (nothing was computed or written)
     skipped: bool = False
     #: the speech as the pipeline heard it (16 kHz mono ``[N]`` float32; None when skipped)
@@ -244,7 +250,7 @@ class AnimationResult:
 
 def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool = False,
             report: Callable[[str], None] | None = None,
-            written: Callable[[Path, SMPLXSequence], None] | None = None) -> AnimationResult:
+            written: Callable[[Path, SMPLXSequence], None] | None = None, verbose: bool = False) -> AnimationResult:
     """Animate ``request.speech`` with ``pipe`` and write every output of ``request``.
 
     Reads the speech and the edit recordings, refuses existing outputs (unless ``request.overwrite``; with
@@ -253,7 +259,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     ``emotion_from`` recording, whose emotion is blended like the speech's under ``auto``), draws the
     samples, exports each, and writes the perception report as a JSON list, whole or not at all.
     ``progress``: tqdm bars on stderr. ``report(summary)`` is called with each perception summary as
-    soon as it is known; ``written(path, sequence)`` after each animation file. Prints nothing itself.
+    soon as it is known (``verbose``: followed by its details, one indented line each);
+    ``written(path, sequence)`` after each animation file. Prints nothing itself.
     """
     request.validate()
     wave = pipe.load_speech(request.speech)
@@ -278,10 +285,10 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
                 check_output(path, request.overwrite)
         check_output(perception_path, request.overwrite)
 
-    settings = pipe.settings(seam_candidates=request.seam_candidates)
+    settings = pipe.settings(request.generation)
     with tqdm(total=len(window_starts(len(wave) / TARGET_SAMPLE_RATE, WINDOW_SECONDS, settings.hop_seconds)),
               desc="encoding speech", unit="window", disable=not progress, leave=False) as bar:
-        encoded = pipe.encode(wave, progress=bar.update)
+        encoded = pipe.encode(wave, progress=bar.update, generation=settings)
     reference = (None if neutral_wave is None else
                  pipe.neutral_reference(neutral_wave, request.neutral_name(), generation=settings))
     heard, encoded = pipe.perceive_against(encoded, str(request.speech), reference)
@@ -290,19 +297,23 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
         perceived[0].in_force = request.timeline.window_report(
             request.timeline.shares(encoded[1], WINDOW_SECONDS, len(wave) / TARGET_SAMPLE_RATE))
     if edit is not None and emotion_wave is not None:
-        enc, starts = pipe.encode(emotion_wave, parts=pipe.edit_source_parts("emotion"))
+        enc, starts = pipe.encode(emotion_wave, parts=pipe.edit_source_parts("emotion"), generation=settings)
         perceived.append(pipe.perceive(enc, starts, source=str(request.emotion_from)))
         edit.emotion_from = (auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech))
                              if request.mode == "auto" else enc.emotion)
     if edit is not None and style_wave is not None:
-        edit.style_from = pipe.encode(style_wave, parts=pipe.edit_source_parts("style"))[0].style
+        edit.style_from = pipe.encode(style_wave, parts=pipe.edit_source_parts("style"), generation=settings)[0].style
     summaries = [p.summary(request.mode) for p in perceived]
+    details = [p.details(request.mode) for p in perceived]
     own = request.label is None and request.emotion_from is None and request.timeline is None
     if reference is None and own and perceived[0].unlike_training_voices:  # its own emotion, read alone
         summaries[0] += NEUTRAL_HINT
-    for line in summaries:
+        details[0].append(NEUTRAL_DETAIL)
+    for line, more in zip(summaries, details):
         if report is not None:
-            report(line)
+            report("\n".join([line] + [textwrap.fill(d, LINE_CHARS, initial_indent="  ", subsequent_indent="    ",
+                                                                  break_long_words=False, break_on_hyphens=False)
+                                        for d in more]) if verbose else line)
 
     windows = len(encoded[1])
     with tqdm(total=windows * candidates_drawn(windows, settings.seam_candidates) * request.samples,
@@ -319,4 +330,4 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     if not (request.skip_existing and perception_path.exists()):
         with atomic_output(perception_path, request.overwrite) as tmp:
             tmp.write_text("[\n" + ",\n".join(p.to_json().rstrip() for p in perceived) + "\n]\n")
-    return AnimationResult(files, perception_path, perceived, summaries, sequences, speech=wave)
+    return AnimationResult(files, perception_path, perceived, summaries, sequences, details, speech=wave)

@@ -85,7 +85,7 @@ def _same_outputs(requests: list[AnimationRequest]) -> None:
 def animate_files(pipe: GesturePipeline, speeches: Sequence[str | PathLike[str]], template: AnimationRequest, *,
                   progress: bool = False, report: Callable[[str], None] | None = None,
                   written: Callable[[Path, SMPLXSequence], None] | None = None,
-                  finished: Callable[["BatchItem"], None] | None = None) -> list[BatchItem]:
+                  finished: Callable[["BatchItem"], None] | None = None, verbose: bool = False) -> list[BatchItem]:
     """Animate every recording of ``speeches`` with the settings of ``template`` (its ``speech`` is
     replaced by each). ``progress``: one bar over the recordings (each recording's own bars when there is
     one); ``report`` and ``written`` as in :func:`~emogesture.pipeline.animate.animate`; ``finished(item)``
@@ -98,7 +98,8 @@ def animate_files(pipe: GesturePipeline, speeches: Sequence[str | PathLike[str]]
         for request in requests:
             item = BatchItem(request.speech)
             try:
-                item.result = animate(pipe, request, progress=progress and single, report=report, written=written)
+                item.result = animate(pipe, request, progress=progress and single, report=report, written=written,
+                                      verbose=verbose)
             except EmogestureError as e:
                 item.error = str(e) if str(request.speech) in str(e) else f"{request.speech}: {e}"
             except (OSError, ValueError, RuntimeError) as e:  # not ours: still one line, and the batch goes on

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
 
@@ -31,16 +31,16 @@ from emogesture.errors import EmogestureError, InputFileError
 from emogesture.models.speech import LATENT_PARTS
 from emogesture.models.generation import GenerationConfig
 from emogesture.motion import MotionFeatureSpec, SkeletonBody, features_to_poses
-from emogesture.pipeline.sampling import decode_latents, sample_latents
+from emogesture.pipeline.sampling import draw_seed, edit_emotion, generate_from_conditions, label_latents
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
-                                             residual_weights, settle_quiet_windows, stitch)
+                                             residual_weights, stitch)
 from emogesture.pipeline.neutral_reference import NeutralReference, check_reference, reference_name
 from emogesture.pipeline.perception import auto_emotion, auto_style, fallback_style_of, perceive, perception_of
 from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.pipeline.timeline import EmotionTimeline, timeline_latents
 from emogesture.runtime import StageTimes, hold_bf16_weights, maybe_stage, resolve_precision
-from emogesture.types import SMPLXSequence
+from emogesture.types import EMOTIONS, SMPLXSequence
 
 WINDOW_SECONDS = 10.0
 #: Seconds between the starts of a long audio's windows, unless a model's settings say otherwise
@@ -124,18 +124,16 @@ class GesturePipeline:
             joints = self.body.forward_features(torch.from_numpy(np.ascontiguousarray(features, np.float32)), self.spec)
         return largest_joint_jumps(joints)
 
-    def encode(self, waveform: np.ndarray, hop_seconds: float | None = None,
-               progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
+    def encode(self, waveform: np.ndarray, progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                parts: tuple[str, ...] = LATENT_PARTS, generation: GenerationConfig | None = None,
                perceived: bool = True) -> tuple[EncodedWindows, list[float]]:
-        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` (None: the
-        settings' hop), and their starts (s); ``parts``: the latents wanted (default all three; an edit
+        """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` of the settings,
+        and their starts (s); ``parts``: the latents wanted (default all three; an edit
         source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``
         and ``perception_semitones``); ``perceived`` False: only the latents are wanted, not what
         :meth:`perceive` reads, so the recording is heard once."""
         settings = generation or self.generation
-        hop = settings.hop_seconds if hop_seconds is None else hop_seconds
-        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, hop, progress, times, parts,
+        return self.speech.encode(waveform, TARGET_SAMPLE_RATE, settings.hop_seconds, progress, times, parts,
                                   noise_suppression=settings.noise_suppression,
                                   perception_semitones=settings.perception_semitones if perceived else 0.0)
 
@@ -218,12 +216,11 @@ class GesturePipeline:
             elif edit.emotion_from is not None:
                 target = edit.emotion_from[np.arange(n) % len(edit.emotion_from)]
             elif edit.emotion_label is not None:
-                means = self.loaded.metadata.emotion_latent_means or {}
-                if edit.emotion_label not in means:
-                    raise EmogestureError(f"unknown emotion {edit.emotion_label!r}; known: {', '.join(means)}")
-                target = np.broadcast_to(np.asarray(means[edit.emotion_label], np.float32), e.shape)
+                if edit.emotion_label not in EMOTIONS:
+                    raise EmogestureError(f"unknown emotion {edit.emotion_label!r}; known: {', '.join(EMOTIONS)}")
+                target = label_latents(self.loaded, np.full(n, EMOTIONS.index(edit.emotion_label)))
             if target is not None:
-                e = ((1.0 - edit.emotion_weight) * e + edit.emotion_weight * target).astype(np.float32)
+                e = edit_emotion(e, target, edit.emotion_weight)
             if edit.style_from is not None:
                 s = edit.style_from[np.arange(n) % len(edit.style_from)].astype(np.float32)
         if self.loaded.config.hears_timing:
@@ -235,31 +232,21 @@ class GesturePipeline:
 
     def generate_windows(self, conditions: list[np.ndarray], seeds: list[int],
                          progress: Callable[[int], None] | None = None,
-                         residual_weights: np.ndarray | None = None, times: StageTimes | None = None,
+                         sound: np.ndarray | None = None, times: StageTimes | None = None,
                          generation: GenerationConfig | None = None) -> np.ndarray:
-        """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``
-        (``residual_weights [W]`` scale each window's residual noise; ``generation``: None = the pipeline's)."""
-        settings = generation or self.generation
-        timing = conditions[-1] if self.loaded.config.hears_timing else None
-        with maybe_stage(times, "sampling"):
-            z = sample_latents(self.loaded, conditions, seeds, batch_size=SAMPLING_BATCH, generation=settings,
-                               progress=progress, residual_weights=residual_weights, precision=self.precision)
-        with maybe_stage(times, "motion decoder"):
-            return decode_latents(self.loaded, z, self.loaded.config.vae.frames, timing=timing,
-                                  precision=self.precision, generation=settings)
+        """Condition latents ``[W, 256]`` x3 and one seed per window -> raw features ``[W, T, D]``, the steps
+        after sampling up to the seams included (:func:`~emogesture.pipeline.sampling.generate_from_conditions`;
+        ``sound [W]``: the windows' sound weights; ``generation``: None = the pipeline's)."""
+        return generate_from_conditions(self.loaded, conditions, seeds, SAMPLING_BATCH, generation or self.generation,
+                                        progress=progress, sound=sound, precision=self.precision, times=times)
 
-    def settings(self, generation: GenerationConfig | None = None, seam_candidates: int | None = None,
-                 hop_seconds: float | None = None) -> GenerationConfig:
-        """The settings of one call: ``generation`` (None: the pipeline's) with ``seam_candidates`` and
-        ``hop_seconds`` replaced where given."""
-        settings = generation or self.generation
-        changes = {k: v for k, v in (("seam_candidates", seam_candidates), ("hop_seconds", hop_seconds))
-                   if v is not None}
-        return replace(settings, **changes) if changes else settings  # checked: a ConfigError names the field
+    def settings(self, generation: GenerationConfig | None = None) -> GenerationConfig:
+        """The settings of one call: ``generation``, or the pipeline's (:attr:`generation`) when None. A call
+        changes one setting with ``dataclasses.replace(pipe.generation, seam_candidates=1)``."""
+        return generation or self.generation
 
     def draw_windows(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0,
-                     samples: int = 1, hop_seconds: float | None = None, seam_candidates: int | None = None,
-                     emotion_mode: str = "auto", encoded: tuple[EncodedWindows, list[float]] | None = None,
+                     samples: int = 1, emotion_mode: str = "auto", encoded: tuple[EncodedWindows, list[float]] | None = None,
                      progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                      generation: GenerationConfig | None = None) -> tuple[np.ndarray, list[int]]:
         """A 16 kHz waveform ``[N]`` -> every window drawn, before stitching: raw motion features
@@ -269,7 +256,7 @@ class GesturePipeline:
         Every sample's every candidate of every window is drawn in one batched pass (each from its own
         generator, so the result does not depend on how many are drawn together).
         """
-        settings = self.settings(generation, seam_candidates, hop_seconds)
+        settings = self.settings(generation)
         if encoded is None:
             encoded = self.encode(waveform, times=times, generation=settings, perceived=False)
         enc, starts_s = encoded
@@ -282,10 +269,8 @@ class GesturePipeline:
         picked = [c[rows] for c in conds]
         weights = residual_weights(window_activity(waveform, TARGET_SAMPLE_RATE, starts_s))[rows]
         # candidate 0 of window i keeps the seed it has with one candidate
-        seeds = [int(np.random.SeedSequence([seed, k, i] + ([c] if c else [])).generate_state(1)[0])
-                 for k, i, c in draws]
-        drawn = settle_quiet_windows(self.generate_windows(picked, seeds, progress, weights, times, settings),
-                                     weights, self.fps)
+        seeds = [draw_seed(seed, k, i, c) for k, i, c in draws]
+        drawn = self.generate_windows(picked, seeds, progress, weights, times, settings)
         return drawn.reshape(samples, n, k_cand, *drawn.shape[1:]), starts
 
     def to_sequence(self, feats: np.ndarray) -> SMPLXSequence:
@@ -295,22 +280,21 @@ class GesturePipeline:
         return SMPLXSequence(poses=poses.numpy(), trans=trans_np, fps=self.fps)
 
     def generate(self, waveform: np.ndarray, *, edit: EditRequest | None = None, seed: int = 0, samples: int = 1,
-                 hop_seconds: float | None = None, seam_candidates: int | None = None, emotion_mode: str = "auto",
+                 emotion_mode: str = "auto",
                  encoded: tuple[EncodedWindows, list[float]] | None = None,
                  progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                  generation: GenerationConfig | None = None) -> list[SMPLXSequence]:
         """A 16 kHz waveform ``[N]`` -> ``samples`` SMPL-X sequences of ``round(N / 16000 * 30)`` frames.
 
-        ``generation``: the settings of this call (None: the model's; :attr:`generation`), with
+        ``generation``: the settings of this call (None: the model's; :attr:`generation`), among them
         ``seam_candidates`` (samples drawn per window, one kept per window so that the worst seam moves
-        least; 1 = every window independent) and ``hop_seconds`` replaced where given.
+        least; 1 = every window independent) and ``hop_seconds`` (seconds between window starts).
         ``emotion_mode``: see :meth:`conditions`. ``encoded``: the waveform's ``encode(waveform,
         hop_seconds)`` when already computed. ``progress(n)`` is called as ``n`` more windows are drawn.
         ``times``: wall seconds per stage are added to it (``fbank``, ``speech encoders``, ``sampling``,
         ``motion decoder``, ``seams and poses``). The windows are drawn by :meth:`draw_windows`.
         """
-        drawn, starts = self.draw_windows(waveform, edit=edit, seed=seed, samples=samples, hop_seconds=hop_seconds,
-                                          seam_candidates=seam_candidates, emotion_mode=emotion_mode,
+        drawn, starts = self.draw_windows(waveform, edit=edit, seed=seed, samples=samples, emotion_mode=emotion_mode,
                                           encoded=encoded, progress=progress, times=times, generation=generation)
         num_frames = int(round(len(waveform) / TARGET_SAMPLE_RATE * self.fps))
         with maybe_stage(times, "seams and poses"):

@@ -1,15 +1,29 @@
 """What ``generate`` tells a user it heard: the emotion perceived in each window of one recording, its one-line
-summary and the per-window JSON written beside the animation (:class:`PerceivedEmotion`)."""
+summary, the details behind it (``--verbose``) and the per-window JSON written beside the animation
+(:class:`PerceivedEmotion`)."""
 
 from __future__ import annotations
 
 import json
+import re
 from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
 
 from emogesture.types import EMOTIONS
+
+#: the longest file name a summary shows whole (a longer one keeps its end)
+NAME_CHARS = 32
+
+
+def short_name(source: str) -> str:
+    """A recording's file name for a one-line summary (``talk.flac 10-20 s`` keeps its span), at most
+    :data:`NAME_CHARS` characters."""
+    span = re.search(r" [0-9.]+-[0-9.]+ s$", str(source))
+    path = str(source)[:span.start()] if span else str(source)
+    name = path.replace("\\", "/").rsplit("/", 1)[-1] + (span.group(0) if span else "")
+    return name if len(name) <= NAME_CHARS else "…" + name[-(NAME_CHARS - 1):]
 
 
 @dataclass
@@ -53,35 +67,51 @@ class PerceivedEmotion:
         return 2 * max(real, int((self.trust < 1.0).sum())) >= len(self.labels)
 
     def summary(self, mode: str) -> str:
-        """One line: the emotion heard, how, and what ``mode`` (``auto``/``own``) does about windows beyond
-        the calibrated range."""
+        """One short line: the emotion heard and what ``mode`` (``auto``/``own``) did about windows beyond the
+        calibrated range, the recording named by its file name; :meth:`details` says the rest."""
         label, count = self.majority
         n = len(self.labels)
-        text = (f"{self.source}: perceived emotion {label} ({count} of {n} window{'s' * (n != 1)}, "
-                f"mean probability {self.confidence:.2f})")
-        if self.noise_suppressed > 0:
-            text += f", heard with its steady background noise taken out ({self.noise_suppressed:.0%})"
-        if self.digital_silence_s > 0:
-            text += f", its {self.digital_silence_s:.1f} s of digital silence heard as the recording's own quiet"
+        text = f"{short_name(self.source)}: heard {label} in {count}/{n} windows (p {self.confidence:.2f})"
         if self.neutral_reference is not None:
-            text += f", read against the speaker's neutral voice in {self.neutral_reference}"
+            text += f" against {short_name(self.neutral_reference)}"
         if self.trust is None:
-            return text + "; this speech model has no perception calibration, its emotion latent is used as is"
+            return text + "; no calibration: used as heard"
+        low = int((self.trust < 1.0).sum())
+        if mode == "auto" and low:
+            far = int((self.distance[:, 1] > 1.0).sum())
+            return text + f"; auto: {low} toward neutral" + (f", {far} fallback style" if far else "")
+        if low:
+            return text + f"; {low} beyond the training voices, kept"
+        return text + "; every window trusted"
+
+    def details(self, mode: str) -> list[str]:
+        """What :meth:`summary` leaves out, a sentence a line: how the recording was heard and why windows were
+        blended (``generate --verbose`` prints them)."""
+        n = len(self.labels)
+        lines = []
+        if self.noise_suppressed > 0:
+            lines.append(f"heard with its steady background noise taken out ({self.noise_suppressed:.0%})")
+        if self.digital_silence_s > 0:
+            lines.append(f"its {self.digital_silence_s:.1f} s of digital silence heard as the recording's own quiet")
+        if self.neutral_reference is not None:
+            lines.append(f"read against the speaker's neutral voice in {self.neutral_reference}")
+        if self.trust is None:
+            return lines + ["this speech model has no perception calibration: its emotion latent is used as is"]
         low = int((self.trust < 1.0).sum())
         real = int((self.real_voices > 0.5).sum()) if self.real_voices is not None else 0
         if mode == "auto" and real:
-            text += (f"; {real} of {n} windows sound more like the real voices the perception knows than the training "
-                     "voices and are animated with the training voices' latent of the emotion heard")
+            lines.append(f"{real} of {n} windows sound more like the real voices the perception knows than the "
+                         "training voices and are animated with the training voices' latent of the emotion heard")
         if mode == "auto" and low:
-            far_voice = int((self.distance[:, 1] > 1.0).sum())
-            style = (f", and in {far_voice} the voice is unlike every training voice, so its gesture style is blended "
-                     "toward the gesture model's fallback style") if far_voice else ""
-            return (text + f"; in {low} of {n} windows the voice or its emotion is unlike the training speech "
-                    f"(beyond the calibrated range), so their emotion is blended toward neutral{style} "
-                    "(--emotion own keeps both)")
-        if low:
-            return text + f"; {low} of {n} windows lie outside the training voices' range (kept: --emotion own)"
-        return text + "; every window within the training voices' range"
+            far = int((self.distance[:, 1] > 1.0).sum())
+            lines.append(f"in {low} of {n} windows the voice or its emotion is unlike the training speech (beyond "
+                         "the calibrated range), so their emotion is blended toward neutral (--emotion own keeps it)")
+            if far:
+                lines.append(f"in {far} the voice is unlike every training voice, so its gesture style is blended "
+                             "toward the gesture model's fallback style")
+        elif low:
+            lines.append(f"{low} of {n} windows lie outside the training voices' range (kept: --emotion own)")
+        return lines
 
     def to_json(self) -> str:
         rows = []

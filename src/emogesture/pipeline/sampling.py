@@ -25,27 +25,51 @@ from emogesture.diffusion.schedulers import make_ddim_scheduler
 from emogesture.errors import EmogestureError
 from emogesture.models.generation import GenerationConfig
 from emogesture.motion import MotionFeatureSpec
-from emogesture.pipeline.postprocess import add_residual, filter_output, guide_timing
-from emogesture.runtime import autocast, bf16_weights, refuse_held_weights
-from emogesture.types import EMOTIONS
+from emogesture.pipeline.postprocess import add_residual, filter_output, guide_timing, settle_quiet_windows
+from emogesture.runtime import StageTimes, autocast, bf16_weights, maybe_stage, refuse_held_weights
+from emogesture.types import EMOTIONS, FPS
 
 
-def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray) -> list[np.ndarray]:
-    """Replace each window's emotion latent by the stored mean latent of its target label ``labels [W]``."""
+def label_latents(gesture: LoadedModel, labels: np.ndarray) -> np.ndarray:
+    """Each window's target label ``labels [W]`` (indices of :data:`~emogesture.types.EMOTIONS`) -> the model's
+    stored mean emotion latent of that label ``[W, 256]`` float32: what an edit by label moves toward."""
     means = gesture.metadata.emotion_latent_means
-    if not means or len(conditions) < 3:
+    if not means:
         raise EmogestureError(f"{gesture.path}: this model has no emotion latents to edit")
-    missing = sorted({EMOTIONS[k] for k in labels.tolist()} - set(means))
+    missing = sorted({EMOTIONS[k] for k in np.asarray(labels).tolist()} - set(means))
     if missing:
-        raise EmogestureError(f"{gesture.path}: no mean emotion latent for {', '.join(missing)}")
+        raise EmogestureError(f"{gesture.path}: no mean emotion latent for {', '.join(missing)}; "
+                              f"known: {', '.join(means)}")
     table = {EMOTIONS.index(k): np.asarray(v, np.float32) for k, v in means.items()}
-    emotion = np.stack([table[int(k)] for k in labels])
-    return [conditions[0], emotion, *conditions[2:]]  # the timing stream, if any, stays the speech's own
+    return np.stack([table[int(k)] for k in np.asarray(labels).reshape(-1)]).reshape(len(labels), -1)
+
+
+def edit_emotion(emotion: np.ndarray, target: np.ndarray, weight: float = 1.0) -> np.ndarray:
+    """The one emotion edit: emotion latents ``[W, 256]`` moved toward ``target [W, 256]`` by ``weight``
+    (0: unchanged, 1: the target), float32."""
+    return ((1.0 - weight) * emotion + weight * target).astype(np.float32)
+
+
+def emotion_label_edit(gesture: LoadedModel, conditions: list[np.ndarray], labels: np.ndarray,
+                       weight: float = 1.0) -> list[np.ndarray]:
+    """Conditions ``[c, e, s(, timing)]`` with each window's emotion latent edited toward the stored mean latent
+    of its target label ``labels [W]`` (:func:`label_latents`, :func:`edit_emotion`); the timing stream, if
+    any, stays the speech's own."""
+    if len(conditions) < 3:
+        raise EmogestureError(f"{gesture.path}: this model has no emotion latents to edit")
+    return [conditions[0], edit_emotion(conditions[1], label_latents(gesture, labels), weight), *conditions[2:]]
+
+
+def draw_seed(seed: int, sample: int, window: int, candidate: int = 0) -> int:
+    """The noise seed of one draw: ``sample`` of a call's samples, ``window`` of its windows, ``candidate`` of
+    the window's seam candidates, all derived from the user's ``seed`` (the one scheme of ``generate``, the
+    live stream and the evaluation; candidate 0 of a window keeps the seed it has with one candidate)."""
+    return int(np.random.SeedSequence([seed, sample, window] + ([candidate] if candidate else [])).generate_state(1)[0])
 
 
 def window_seeds(seed: int, count: int) -> list[int]:
-    """One noise seed per window, derived from ``seed`` (the same for every model and edit)."""
-    return [int(np.random.SeedSequence([seed, 7, i]).generate_state(1)[0]) for i in range(count)]
+    """The seeds of ``count`` windows of one sample (:func:`draw_seed`; the same for every model and edit)."""
+    return [draw_seed(seed, 0, i) for i in range(count)]
 
 
 def _motion_statistics(gesture: LoadedModel) -> tuple[np.ndarray, np.ndarray]:
@@ -169,19 +193,27 @@ def decode_latents(gesture: LoadedModel, z: torch.Tensor, frames: int, batch_siz
 def generate_from_conditions(gesture: LoadedModel, conditions: list[np.ndarray], seeds: list[int],
                              batch_size: int = 64, generation: GenerationConfig | None = None,
                              residual: bool = True, progress: Callable[[int], None] | None = None,
-                             residual_weights: np.ndarray | None = None, precision: str = "fp32") -> np.ndarray:
-    """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``.
+                             sound: np.ndarray | None = None, precision: str = "fp32",
+                             times: StageTimes | None = None) -> np.ndarray:
+    """Raw conditions ``[W, ·]`` and one noise seed per window -> generated raw motion ``[W, T, D]``: the
+    engine of ``generate``, the live stream and the evaluation, the steps after sampling of
+    :mod:`~emogesture.pipeline.postprocess` 1-4 included (the seams, step 5, join a recording's windows).
 
     Window ``i`` draws its noise from its own generator, so results do not depend on ``batch_size``
-    (see :func:`window_seeds`). The model runs in eval mode on its own device, with its ``diffusion.eta``;
-    ``generation``: the settings (None: the model's own). A calibrated model adds its residual noise
-    (``residual_scale``, times ``residual_weights [W]`` when given) unless ``residual=False``.
+    (see :func:`draw_seed`). The model runs in eval mode on its own device, with its ``diffusion.eta``;
+    ``generation``: the settings (None: the model's own). ``sound [W]``: each window's sound weight in [0, 1]
+    (:func:`~emogesture.pipeline.postprocess.residual_weights`; None: every window full of sound, as every
+    window of the corpus is): a calibrated model's residual noise is scaled by it (none at all with
+    ``residual=False``) and a quiet window settles (step 4). ``times``: wall seconds of ``sampling`` and
+    ``motion decoder`` are added to it.
     """
-    z = sample_latents(gesture, conditions, seeds, batch_size, generation, residual, progress,
-                       residual_weights, precision)
+    with maybe_stage(times, "sampling"):
+        z = sample_latents(gesture, conditions, seeds, batch_size, generation, residual, progress, sound, precision)
     timing = conditions[-1] if gesture.config.hears_timing else None
-    return decode_latents(gesture, z, gesture.config.vae.frames, min(batch_size, DECODE_BATCH), timing, precision,
-                          generation)
+    with maybe_stage(times, "motion decoder"):
+        drawn = decode_latents(gesture, z, gesture.config.vae.frames, min(batch_size, DECODE_BATCH), timing,
+                               precision, generation)
+    return drawn if sound is None else settle_quiet_windows(drawn, sound, FPS)
 
 
 def reconstruct_motion(gesture: LoadedModel, motion: np.ndarray, batch_size: int = 64,

@@ -41,7 +41,8 @@ from emogesture.errors import EmogestureError
 from emogesture.pipeline.animate import emotion_request
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline
 from emogesture.pipeline.neutral_reference import NeutralReference
-from emogesture.pipeline.postprocess import residual_weights, settle_quiet_windows
+from emogesture.pipeline.postprocess import residual_weights
+from emogesture.pipeline.sampling import draw_seed
 from emogesture.types import SMPLXSequence
 
 __all__ = ["GestureStream", "StreamFrames", "StreamSettings"]
@@ -174,11 +175,10 @@ class GestureStream:
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
         if window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop], window_seconds=hop)[0] > 0.1:
             self.draws += 1  # new noise where the newest audio has sound; over silence the same draw goes on
-        seeds = [int(np.random.SeedSequence([self.seed, self.draws, c]).generate_state(1)[0]) for c in range(k)]
+        seeds = [draw_seed(self.seed, 0, self.draws, c) for c in range(k)]
         weight = residual_weights(window_activity(self.audio, TARGET_SAMPLE_RATE, [0.0]))
         drawn = self.pipe.generate_windows([np.repeat(c[:1], k, 0) for c in conds], seeds,
-                                           residual_weights=np.repeat(weight, k))
-        drawn = settle_quiet_windows(drawn, np.repeat(weight, k), self.fps)  # [K, T, D]
+                                           sound=np.repeat(weight, k))  # [K, T, D]
         end = self.frames_per_window  # window frame `end` is the instant of frame `target`
         chosen = drawn[:, end - new:end]
         if self.last is None:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from emogesture.errors import EmogestureError
+from emogesture.pipeline.sampling import edit_emotion
 from emogesture.types import EMOTIONS
 
 OWN_MODES = ("auto", "own")
@@ -139,6 +140,7 @@ def timeline_latents(timeline: EmotionTimeline, shares: np.ndarray, own: np.ndar
         else:
             if frame.label not in means:
                 raise EmogestureError(f"--emotion: the model has no mean latent for {frame.label!r}")
-            latent = (1.0 - frame.weight) * auto + frame.weight * np.asarray(means[frame.label], np.float64)[None]
+            target = np.broadcast_to(np.asarray(means[frame.label], np.float32), auto.shape)
+            latent = edit_emotion(auto, target, frame.weight)
         out += shares[:, k:k + 1] * latent
     return out.astype(np.float32)

@@ -287,7 +287,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
         enc_e = conds[1]
         metadata = metadata.replace(
             speech_model=str(Path(speech.loaded.path).resolve()),
-            speech_weights_sha256=speech.loaded.meta["weights_sha256"],
+            speech_weights_sha256=speech.loaded.weights_sha256,
             emotion_latent_means={EMOTIONS[k]: enc_e[train.emotion == k].mean(0).tolist()
                                   for k in sorted(set(train.emotion.tolist()))})
 
@@ -311,7 +311,7 @@ def build(config: GestureTrainConfig, cache_dir: Path, seed: int, speech_run: Pa
         # the weight average takes its last update, and the export when training ends comes after it
         if calibration is not None and m.global_step >= (m.trainer.max_steps or 0) > 0:
             was_training = m.averaged.training
-            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, done, {}, run_dir, m.cfg.generation),
+            stats = calibrate_residual(LoadedModel(m.averaged, m.cfg.model, done, run_dir, generation=m.cfg.generation),
                                        *calibration, seed=seed)
             m.averaged.train(was_training)
             done = done.replace(residual_calibration={**stats, "step": m.global_step, "split": "val"})

@@ -161,7 +161,7 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
                                labelled_held_out_windows=int(len(held_emotions) - len(cache.split(split).emotion)))
     # the weights file a gesture model trained on this network names (the file's checksum changes here)
     before = (loaded.metadata.emotion_perception or {}).get("info") or {}
-    perception.info["calibrated_from"] = before.get("calibrated_from", loaded.meta["weights_sha256"])
+    perception.info["calibrated_from"] = before.get("calibrated_from", loaded.weights_sha256)
     record, tensors = perception.to_state()
     metadata = loaded.metadata.replace(train_splits=trained_on, emotion_perception=record)
     save_model(out, "speech", loaded.model, loaded.config, metadata, weights_dtype=stored_weights_dtype(loaded),
