@@ -22,7 +22,7 @@ CLIPS := src/emogesture/assets/demo
 DEMO_FILES := $(DEMO_DIR)/talk_seed0_0.mp4 $(DEMO_DIR)/talk_emotion-happiness_seed0_0.mp4 \
 	$(DEMO_DIR)/talk_emotion-angry_seed0_0.mp4 $(DEMO_DIR)/talk_style-angry_seed0_0.mp4
 
-.PHONY: demo test model bench setup venv lint clean apt-demo apt-test
+.PHONY: demo test test-fast model bench setup venv lint clean apt-demo apt-test
 
 demo: apt-demo $(VENV)/.installed $(DEMO_FILES)
 	@echo; echo "demo animations (npz for the SMPL-X add-on, bvh for Blender/Unity/Maya, mp4 to watch):"
@@ -40,6 +40,11 @@ $(DEMO_DIR)/talk_style-angry_seed0_0.mp4:
 
 test: apt-test $(VENV)/.installed $(GLTF_VALIDATOR)
 	$(PY) -m pytest -q tests
+
+# the quick loop while developing: no apt installs, and no training, browser, Blender or benchmark tests
+# (tests/conftest.py marks them); a test that needs a Debian package it does not find is skipped
+test-fast: $(VENV)/.installed
+	$(PY) -m pytest -q -m "not training and not browser and not blender and not bench" tests
 
 model: apt-test $(VENV)/.installed
 	bash experiments/bundled_model.sh

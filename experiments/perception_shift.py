@@ -12,7 +12,8 @@ share of windows that `generate --emotion auto` blends toward neutral. Each wind
 hears it (the default generation settings: noise suppression, and the voice heard also moved
 ``perception_semitones`` up and down).
 
-Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT]
+Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT] [SEMITONES]
+(SEMITONES: the pitch-shifted hearings; default: the setting of the bundle SPEECH_MODEL belongs to)
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from emogesture.audio.wave_augment import recording_changes
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.models.generation import GenerationConfig
+from emogesture.pipeline.generate import GesturePipeline
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -39,7 +41,15 @@ def pink(length: int, rng: np.random.Generator) -> np.ndarray:
     return (0.05 * out / out.std()).astype(np.float32)
 
 
-def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -> None:
+def bundled_semitones(speech_model: str) -> float:
+    """The ``perception_semitones`` of the bundle a speech.json belongs to (the default without one)."""
+    beside = Path(speech_model).parent / "gesture.json" if speech_model.endswith(".json") else None
+    if beside is not None and beside.exists():
+        return GesturePipeline.from_run(beside).generation.perception_semitones
+    return GenerationConfig().perception_semitones
+
+
+def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", semitones: str | None = None) -> None:
     encoder = SpeechLatentEncoder.from_run(speech_model)
     perception = perception_of(encoder)
     cache = open_cache(cache_dir)
@@ -54,7 +64,7 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
     variants = {f"{which}, as recorded": lambda w: w,
                 **{name: lambda w, c=change: np.asarray(c(w), f32) for name, change in recording_changes(rng).items()},
                 "pink noise, no speech": lambda w: pink(len(w), rng)}
-    semitones = GenerationConfig().perception_semitones
+    semitones = float(semitones) if semitones is not None else bundled_semitones(speech_model)
     rows = {}
     for name, change in variants.items():
         hits, dist, voice, low, trust, labels = [], [], [], [], [], []
@@ -101,4 +111,4 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test") -
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:5])
+    main(*sys.argv[1:6])

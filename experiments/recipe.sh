@@ -1,23 +1,10 @@
-# The bundled model's recipe (sourced, from the repository root, after common.sh): `train_bundle RUN CACHE`
-# trains, calibrates and bundles a model from a windows cache into RUN (RUN/bundle: float16 weights, config
-# and statistics in JSON, SHA256SUMS), every step resumed when re-run (finished trainings are not redone),
-# each training's wall time appended to RUN/times.txt. bundled_model.sh runs it on the experiments' corpus
-# and ships the result.
-#   1. the speech model (tiny, --losses adversarial, 1300 steps, half its windows heard through augmented
-#      recording conditions) on the train texts of the train speakers only, so that the val texts and
-#      voices stay unseen for the calibrations below and the test texts and voices for the model card;
-#      then trained on from there for 700 steps (lr 5e-4) with three quarters of its windows augmented,
-#      voices moved by up to 6 semitones, half of the augmented windows' pitch moved alone by up to 3
-#      semitones and more level changes, its encoders hearing the spectrum up to 4 kHz only (`speech_tuned`,
-#      the one used below); each stage's augmented windows made once before it, 16 variants per window
-#      (`wave_variants`);
-#   2. the evaluation suite's motion feature extractor M (600 steps), beside the first stage;
-#   3. the gesture model (tiny, joint, 2400 steps; its residual noise is calibrated on val);
-#   4. the speech model's emotion perception (class means on train, of three real voices given each
-#      emotion and of the train takes heard through a telephone band, trust threshold on val), and the gesture model's fallback style for unfamiliar voices (the
-#      training speaker whose style gives its typical motion on the val split's neutral windows);
-#   5. the bundle, with the tiny preset's generation settings ($GENERATION in common.sh; chosen on val for
-#      this recipe: reports/bundled_model/generation_sweep_val.md), however old its run.
+# The bundled model's recipe, for the experiment scripts (sourced, from the repository root, after common.sh).
+# The recipe itself is configs/bundled.yaml: `train_bundle RUN CACHE` builds it into RUN (RUN/bundle: float16
+# weights, config and statistics in JSON, SHA256SUMS) with `emogesture train bundle`, every step resumed when
+# re-run, each training's wall time appended to RUN/times.txt; bundled_model.sh runs it on the experiments'
+# corpus and ships the result (ship_bundle). The arrays below are the recipe's stage settings as `--set`
+# options, for the experiments that train one stage with one of them changed (the recipe test checks they
+# agree with configs/bundled.yaml).
 
 # the second speech stage's harder conditions and learning rate (the RAVDESS stage trains on with them)
 SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
@@ -102,6 +89,10 @@ ravdess_manifest() {  # OUT : the labelled-speech manifest of $RAVDESS, unless O
     [ -f "$1" ] || $EG labelled-speech ravdess "$RAVDESS" --out "$1" "${RAVDESS_SPLIT[@]}" --calm drop
 }
 
+ravdess_scoring_manifest() {  # OUT : the manifest the val and test actors are scored on (calm as neutral)
+    [ -f "$1" ] || $EG labelled-speech ravdess "$RAVDESS" --out "$1" "${RAVDESS_SPLIT[@]}" --calm neutral
+}
+
 ravdess_stage() {  # OUT FROM CACHE MANIFEST TIMES : 700 speech steps on from FROM with the second stage's
     # settings and one window of the manifest's train actors in each quadruple, into OUT unless it is there
     local out=$1 from=$2 cache=$3 manifest=$4 times=$5
@@ -111,43 +102,9 @@ ravdess_stage() {  # OUT FROM CACHE MANIFEST TIMES : 700 speech steps on from FR
         --set real_labelled="$manifest" --quiet
 }
 
-train_bundle() {  # RUN CACHE [SPEECH_CACHE]: the speech stages learn from SPEECH_CACHE (default CACHE), the rest
-    # from CACHE
-    local run=$1 cache=$2 speech_cache=${3:-$2} todo=() pids=() threads model pid speech
-    mkdir -p "$run"
-    # the speech model and the extractor side by side (the speech model's augmented windows made first, on
-    # every core), one thread for the extractor (two when left alone)
-    grep -qs '"step": 1300' "$run/speech/model.json" || todo+=(speech)
-    grep -qs '"step": 600' "$run/extractor/model.json" || todo+=(extractor)
-    threads=$(( ${#todo[@]} > 1 ? 1 : 2 ))
-    for model in "${todo[@]}"; do
-        if [ "$model" = speech ]; then
-            timed "$run/times.txt" speech $EG train speech --data "$speech_cache" --out "$run/speech" --losses adversarial \
-                --steps 1300 --checkpoint-every 100 --set wave_augment=0.5 "${SPEECH_VARIANTS[@]}" --quiet &
-        else
-            OMP_NUM_THREADS=$threads timed "$run/times.txt" extractor $EG train extractor --data "$cache" \
-                --out "$run/extractor" --steps 600 --checkpoint-every 100 --quiet &
-        fi
-        pids+=($!)
-    done
-    for pid in "${pids[@]}"; do wait "$pid"; done
-    speech=$run/speech_tuned
-    speech_second_stage "$speech" "$run/speech" "$speech_cache" "$run/times.txt"
-    if [ -n "${RAVDESS:-}" ]; then  # 1b. real actors' emotions (ravdess_stage), the speech model the rest uses
-        ravdess_manifest "$run/ravdess.csv"
-        ravdess_stage "$run/speech_ravdess" "$speech" "$speech_cache" "$run/ravdess.csv" "$run/times.txt"
-        speech=$run/speech_ravdess
-        PERCEPTION=(--labelled "$run/ravdess.csv" --telephone-means)
-    fi
-    train_gesture "$run/gesture" "$cache" "$speech" "$run/times.txt" gesture
-    # 4. emotion perception (train means, val threshold) on a copy of the speech model, the fallback style
-    # (val) on a copy of the gesture model; 5. the bundle
-    [ -f "$run/speech_calibrated/model.json" ] || $EG calibrate speech --model "$speech" --data "$cache" \
-        --out "$run/speech_calibrated" "${PERCEPTION[@]}"
-    [ -f "$run/gesture_styled/model.json" ] || $EG calibrate style --model "$run/gesture" --data "$cache" \
-        --out "$run/gesture_styled"
-    $EG bundle --speech "$run/speech_calibrated" --gesture "$run/gesture_styled" --extractor "$run/extractor" \
-        --out "$run/bundle" --overwrite "${GENERATION[@]}"
+train_bundle() {  # RUN CACHE : the bundled model's recipe (configs/bundled.yaml) trained, calibrated and bundled
+    # into RUN/bundle by `emogesture train bundle` (with RAVDESS when RAVDESS=... is given), every step resumed
+    $EG train bundle --recipe configs/bundled.yaml --data "$2" --out "$1" ${RAVDESS:+--labelled-root "$RAVDESS"} --quiet
 }
 
 ship_bundle() {  # BUNDLE REPORT TIMES : 6. the bundle, as shipped (float16), scored once on the test texts
@@ -162,6 +119,11 @@ ship_bundle() {  # BUNDLE REPORT TIMES : 6. the bundle, as shipped (float16), sc
     .venv/bin/python experiments/perception_shift.py "$bundle/speech.json" "$CACHE" "$report"
     $EG evaluate real --data "$CACHE" --model "$bundle/gesture.json" --out "$report/real" --overwrite
     [ "$times" -ef "$report/training_time.txt" ] || cp "$times" "$report/training_time.txt"
+    if [ -n "${RAVDESS:-}" ]; then  # RAVDESS's test actors, scored once (calm counted as neutral)
+        [ -f "$report/ravdess_test.json" ] || { ravdess_scoring_manifest "$WORK/ravdess_scored.csv" && \
+            .venv/bin/python experiments/ravdess/perception_val.py "$bundle/speech.json" "$WORK/ravdess_scored.csv" \
+                test "$report/ravdess_test.json"; }
+    fi
     .venv/bin/python experiments/model_card.py "$bundle" "$report" "$times" "$CACHE"
     mkdir -p "$assets"
     rm -f "$assets"/*

@@ -16,3 +16,27 @@ def one_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(n)
+
+
+#: what a test uses -> its marker, for the tests not marked by hand: a test whose function names one of these
+#: (a helper it calls, a module it reads) drives a browser or Blender
+BROWSER_NAMES = {"headless_chromium", "require_chromium"}
+BLENDER_NAMES = {"read_in_blender", "blender_fbx", "write_fbx", "export_fbx", "blender"}
+
+
+def _names(function) -> set[str]:
+    code = getattr(function, "__code__", None)
+    return set(code.co_names) | set(code.co_varnames) if code is not None else set()
+
+
+def pytest_collection_modifyitems(items):
+    """Mark the browser, Blender and benchmark tests (``make test-fast`` leaves them out, with the training
+    tests: ``-m "not training and not browser and not blender and not bench"``)."""
+    for item in items:
+        names = _names(getattr(item, "function", None))
+        if names & BROWSER_NAMES:
+            item.add_marker(pytest.mark.browser)
+        if names & BLENDER_NAMES:
+            item.add_marker(pytest.mark.blender)
+        if item.module.__name__ == "test_bench":
+            item.add_marker(pytest.mark.bench)

@@ -127,7 +127,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "emogesture.cli.main", *args], capture_output=True, text=True)
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_generate_writes_every_format_and_the_perception(tmp_path):
     out = tmp_path / "out"
     proc = run_cli("generate", str(DEMO_CLIPS / "angry.flac"), "-o", str(out), "--emotion", "sadness",
@@ -187,7 +187,7 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[list[str], str]]:
     ]
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_bad_input_is_one_line_and_leaves_nothing(tmp_path):
     for args, needle in _bad_inputs(tmp_path):
         proc = run_cli(*args)

@@ -123,7 +123,7 @@ def test_word_timings_follow_voiced_segments():
 
 # --- the module corpus --------------------------------------------------------------------------
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_layout_and_naming(corpus):
     root, summary = corpus
     assert summary.takes == 96 and summary.built == 96 and summary.splits == {"train": 64, "test": 32}
@@ -157,7 +157,7 @@ def test_layout_and_naming(corpus):
         assert all(0 <= s.score <= 1 and 0 <= s.start < s.end <= duration for s in sem)
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_every_speaker_speaks_every_text(corpus):
     root, _ = corpus
     for (_, take), infos in group_takes_by_text(sorted(p.stem for p in (root / "textgrid").iterdir())).items():
@@ -167,7 +167,7 @@ def test_every_speaker_speaks_every_text(corpus):
         assert all(t[: len(shortest)] == shortest for t in texts)  # same text; a long take may add sentences
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_motion_is_anatomically_plausible(corpus):
     root, _ = corpus
     body = SkeletonBody()
@@ -190,7 +190,7 @@ def test_motion_is_anatomically_plausible(corpus):
 
 # --- determinism and resume ---------------------------------------------------------------------
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_same_seed_same_bytes(corpus, mini, tmp_path):
     """Takes do not depend on the corpus size, worker count or order: the 1-speaker corpus (built
     in-process) and single takes rebuilt here equal the module corpus (built by 2 workers)."""
@@ -207,7 +207,7 @@ def test_same_seed_same_bytes(corpus, mini, tmp_path):
                 (root / sub / f"{plan.name}{suffix}").read_bytes()
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_resume_rebuilds_exactly_the_damaged_takes(mini, tmp_path):
     src, _ = mini
     root = tmp_path / "copy"
@@ -279,7 +279,7 @@ def measured(corpus):
     return rows
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_emotion_and_speaker_recoverable_from_audio_and_motion(measured):
     from sklearn.linear_model import LogisticRegression
     from sklearn.pipeline import make_pipeline
@@ -303,7 +303,7 @@ def test_emotion_and_speaker_recoverable_from_audio_and_motion(measured):
     assert results[("motion", "speaker")] >= 0.75
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_motion_follows_the_speech_at_a_persons_level(corpus):
     """The arms' speed follows the take's own onsets (the onset coupling of ``motion-stats``) more than the
     same audio shifted in time, and not as tightly as a corpus that strokes on every syllable. (Against a
@@ -339,7 +339,7 @@ REAL_ANGULAR_SPEED = {
 }
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_motion_moves_like_real_motion(corpus):
     """Every upper-body joint turns within [0.5 × the slower, 1.5 × the faster] real speaker; hand speed and
     posture within the ranges of real motion (wrists pooled)."""

@@ -74,7 +74,7 @@ def _blender() -> str | None:
     return found
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_bvh_in_real_blender(tmp_path):
     blender = _blender()
     if blender is None:
@@ -110,7 +110,7 @@ def _decode_frame(path: Path, index: int, width: int, height: int) -> np.ndarray
     return np.frombuffer(proc.stdout, np.uint8).reshape(height, width, 3)
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_mp4_stream_and_known_pose(tmp_path):
     rng = np.random.default_rng(1)
     duration = 2.5
@@ -169,7 +169,7 @@ def test_parse_formats():
             parse_formats(bad)
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_export_command_on_a_beat2_npz(tmp_path, capsys):
     seq = gesture_like(frames=30)
     npz = save_smplx_npz(seq, tmp_path / "mocap.npz")

@@ -280,7 +280,7 @@ def test_the_papers_design_trains_and_generates_through_the_pipeline(trained):
 
 
 def test_calibrate_style_chooses_the_speaker_with_typical_motion(trained, tmp_path):
-    from emogesture.checkpoints import calibration_splits
+    from emogesture.provenance import calibration_splits
     from emogesture.pipeline.perception import fallback_style_of
     from emogesture.pipeline.speech import SpeechLatentEncoder
     from emogesture.train.fallback_style import speaker_style_means, typicality_cost
@@ -314,7 +314,7 @@ def test_typicality_cost_is_in_units_of_the_real_speech_tolerances():
 
 
 def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_generates(trained, tmp_path):
-    from emogesture.checkpoints import trained_with
+    from emogesture.provenance import trained_with
     from emogesture.pipeline.generate import GesturePipeline
 
     out = subprocess.run(cli("calibrate", "speech", "--model", trained / "speech", "--data", trained / "cache",

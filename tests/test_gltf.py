@@ -134,7 +134,7 @@ def read_in_blender(path, frames, first, tmp_path, seq, skeleton="smplx", script
     return got
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_glb_in_real_blender(tmp_path):
     seq = gesture_like(frames=40, seed=3)
     got = read_in_blender(save_glb(seq, tmp_path / "g.glb"), [0, 9, 24, 39], 0, tmp_path, seq)
@@ -170,14 +170,14 @@ def test_glb_bytes_are_reproducible():
     assert sequence_to_gltf(seq)[1] == sequence_to_gltf(seq)[1]
 
 
-@pytest.mark.slow
+@pytest.mark.training
 def test_fbx_written_by_blender_reads_back_with_the_bones_frames_and_joints(tmp_path):
     seq = gesture_like(frames=40, seed=5)
     got = read_in_blender(save_fbx(seq, tmp_path / "f.fbx"), [1, 10, 25, 40], 1, tmp_path, seq)  # FBX: from 1
     assert got["skinned"]
 
 
-@pytest.mark.slow
+@pytest.mark.training
 @pytest.mark.parametrize("fmt", ["bvh", "glb", "fbx"])
 def test_the_mixamo_rig_has_mixamo_bones_pointing_where_ours_do(tmp_path, fmt):
     """Mixamo's 52 bones by Mixamo's names, each limb (elbow -> wrist, say) pointing where ours does: every bone's

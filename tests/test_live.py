@@ -22,7 +22,7 @@ from emogesture.assets import DEMO_CLIPS
 
 from helpers import canvas_pixels, headless_chromium, require_chromium
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.training
 websockets = pytest.importorskip("websockets")
 
 

@@ -13,7 +13,7 @@ from emogesture.types import SMPLXSequence
 
 from helpers import fk
 
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.training
 
 
 @pytest.fixture(scope="module")

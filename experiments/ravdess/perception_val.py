@@ -5,17 +5,28 @@ per-emotion accuracy, the confusion matrix, the share of windows `--emotion auto
 label to OUT.json, and prints the summary.
 
 Usage: perception_val.py SPEECH_MODEL MANIFEST SPLIT OUT.json [SEMITONES]
-(SEMITONES: the pitch-shifted hearings, as the generation setting perception_semitones; default 3)"""
+(SEMITONES: the pitch-shifted hearings, as the generation setting perception_semitones; default: the setting of
+the gesture model beside SPEECH_MODEL when it is a bundle's speech.json, else 3)"""
 import json, sys
+from pathlib import Path
 from collections import Counter, defaultdict
 import numpy as np
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
+from emogesture.pipeline.generate import GesturePipeline
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.types import EMOTIONS
 
 model, manifest, split, out = sys.argv[1:5]
-semis = float(sys.argv[5]) if len(sys.argv) > 5 else 3.0
+def bundled_semitones(speech_model: str) -> float:
+    """The perception_semitones of the bundle a speech.json belongs to (3 without one)."""
+    beside = Path(speech_model).parent / "gesture.json" if speech_model.endswith(".json") else None
+    if beside is not None and beside.exists():
+        return GesturePipeline.from_run(beside).generation.perception_semitones
+    return 3.0
+
+
+semis = float(sys.argv[5]) if len(sys.argv) > 5 else bundled_semitones(model)
 enc = SpeechLatentEncoder.from_run(model)
 perc = perception_of(enc)
 recs = labelled_recordings(read_manifest(manifest), split, 10.0)
@@ -30,7 +41,7 @@ for name, (wave, emotion) in recs.items():
     rows[name] = heard.labels
 right = sum(conf[e][e] for e in conf); total = sum(sum(c.values()) for c in conf.values())
 per = {e: round(conf[e][e] / max(1, sum(conf[e].values())), 3) for e in EMOTIONS if e in conf}
-res = {"model": model, "split": split, "windows": total, "accuracy": round(right / total, 4), "per_emotion": per,
+res = {"model": model, "split": split, "perception_semitones": semis, "windows": total, "accuracy": round(right / total, 4), "per_emotion": per,
        "trusted": round(float(np.mean(trusted)), 3) if trusted else None,
        "confusion": {e: dict(conf[e]) for e in conf}, "recordings": rows}
 json.dump(res, open(out, "w"), indent=1)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import torch
 
-from emogesture.checkpoints import file_sha256, load_model, read_meta, save_model, trained_with, write_text_atomic
+from emogesture.checkpoints import file_sha256, load_model, read_meta, save_model, write_text_atomic
+from emogesture.provenance import trained_with
 from emogesture.errors import InputFileError, OutputExistsError
 
 CHECKSUMS = "SHA256SUMS"

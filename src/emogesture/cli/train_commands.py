@@ -52,6 +52,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speech", type=Path, help="run folder of `emogesture train speech` (all variants but no_audio)")
     _engine_args(p)
     p.set_defaults(func=run_train_gesture)
+    p = tsub.add_parser("bundle", help="every stage of a recipe (configs/bundled.yaml: the bundled model's), "
+                        "calibrated and bundled",
+                        description="Train a recipe's stages in order, each in its own folder under --out (a finished "
+                        "stage is kept, an interrupted one resumes), calibrate the emotion perception and the "
+                        "fallback style, and write the bundle to OUT/bundle.")
+    p.add_argument("--recipe", required=True, type=Path, help="the recipe, e.g. configs/bundled.yaml")
+    p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
+    p.add_argument("--out", required=True, type=Path, help="run folder (re-running the same command resumes)")
+    p.add_argument("--labelled-root", type=Path, metavar="RAVDESS",
+                   help="RAVDESS's audio_speech_actors_01-24 folder: its stages and calibration run too "
+                        "(CC BY-NC-SA 4.0: the weights are then for non-commercial use)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=run_train_bundle)
 
     cal = sub.add_parser("calibrate", help="measure a model's calibrations on held-out windows")
     csub = cal.add_subparsers(dest="model", required=True, metavar="MODEL")
@@ -158,6 +171,15 @@ def run_train_gesture(args: argparse.Namespace) -> int:
     return _report("gesture model", train_gesture(args.data, args.out, speech=args.speech, preset=args.preset,
                                                   variant=args.variant, config_file=args.config,
                                                   overrides=args.overrides, options=_options(args)))
+
+
+def run_train_bundle(args: argparse.Namespace) -> int:
+    from emogesture.train.recipe import build_bundle, load_recipe
+
+    out = build_bundle(load_recipe(args.recipe), args.data, args.out, labelled_root=args.labelled_root,
+                       progress=not args.quiet)
+    print(f"bundle: {out}")
+    return 0
 
 
 def run_calibrate_gesture(args: argparse.Namespace) -> int:

@@ -21,7 +21,8 @@ from emogesture.audio import detect_onsets, load_audio, onset_strength
 from emogesture.eval.rhythm import RHYTHM_CONSTANTS, arm_speed, envelope_at_frames, mismatched_envelopes, rhythm_gain
 from emogesture.eval.motion_stats import motion_statistics, motion_stats_markdown
 from emogesture.eval.report import split_use_line
-from emogesture.checkpoints import LoadedModel, load_model, split_use, write_text_atomic
+from emogesture.checkpoints import LoadedModel, load_model, write_text_atomic
+from emogesture.provenance import split_use
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import SplitWindows, WindowsCache, open_cache

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from emogesture.checkpoints import load_model, split_use, write_text_atomic
+from emogesture.checkpoints import load_model, write_text_atomic
+from emogesture.provenance import split_use
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.errors import EmogestureError, OutputExistsError

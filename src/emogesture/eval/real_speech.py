@@ -181,7 +181,8 @@ def evaluate_real_speech(model, cache_dir, out_dir, split: str = "test", real_ro
     import json
     from pathlib import Path
 
-    from emogesture.checkpoints import split_use, write_text_atomic
+    from emogesture.checkpoints import write_text_atomic
+    from emogesture.provenance import split_use
     from emogesture.data.cache import open_cache
     from emogesture.data.labelled_speech import labelled_recordings, read_manifest
     from emogesture.data.real_speech import load_real_recording, real_recordings

@@ -14,7 +14,8 @@ import numpy as np
 import torch
 
 from emogesture.eval.report import split_use_line
-from emogesture.checkpoints import split_use, write_text_atomic
+from emogesture.checkpoints import write_text_atomic
+from emogesture.provenance import split_use
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
 from emogesture.data.quadruples import QuadrupleIndex, WindowLabels

@@ -25,7 +25,8 @@ import torch
 
 from emogesture.assets import bundled_model_file
 from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity
-from emogesture.checkpoints import LoadedModel, load_model, trained_with
+from emogesture.checkpoints import LoadedModel, load_model
+from emogesture.provenance import trained_with
 from emogesture.config import from_dict
 from emogesture.errors import EmogestureError, InputFileError
 from emogesture.models.speech import LATENT_PARTS

@@ -29,8 +29,8 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
-                                    stored_weights_dtype)
+from emogesture.checkpoints import LoadedModel, check_model_output, load_model, save_model, stored_weights_dtype
+from emogesture.provenance import refuse_trained_split
 from emogesture.config import from_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import WindowsCache, open_cache

@@ -24,8 +24,8 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader, Dataset
 
-from emogesture.checkpoints import (LoadedModel, check_model_output, load_model, refuse_trained_split, save_model,
-                                    stored_weights_dtype, trained_splits)
+from emogesture.checkpoints import LoadedModel, check_model_output, load_model, save_model, stored_weights_dtype
+from emogesture.provenance import refuse_trained_split, trained_splits
 from emogesture.config import from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache

@@ -13,8 +13,8 @@ from tqdm import tqdm
 
 from emogesture.audio import load_audio
 from emogesture.audio.wave_augment import telephone
-from emogesture.checkpoints import (check_model_output, load_model, refuse_trained_split, save_model,
-                                    stored_weights_dtype, trained_splits)
+from emogesture.checkpoints import check_model_output, load_model, save_model, stored_weights_dtype
+from emogesture.provenance import refuse_trained_split, trained_splits
 from emogesture.data.cache import open_cache
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.data.real_speech import TRAINING_VOICES, training_voice_emotions
