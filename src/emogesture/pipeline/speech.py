@@ -15,7 +15,6 @@ from emogesture.audio import (TARGET_SAMPLE_RATE, FbankConfig, NoiseSuppression,
                               fill_digital_silence, kaldi_fbank, normalise_fbank, normalise_recording, suppress_noise,
                               suppression_strength, window_starts)
 from emogesture.audio.timing import timing_stream
-from emogesture.audio.wave_augment import voice_shift
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.models.perception import EmotionPerception
@@ -176,6 +175,8 @@ class SpeechLatentEncoder:
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
         if perception_semitones > 0 and "emotion" in parts:
+            from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up
+
             shifted = []
             for semitones in (perception_semitones, -perception_semitones):
                 with maybe_stage(times, "fbank"):
