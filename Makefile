@@ -41,10 +41,10 @@ $(DEMO_DIR)/talk_style-angry_seed0_0.mp4:
 test: apt-test $(VENV)/.installed $(GLTF_VALIDATOR)
 	$(PY) -m pytest -q tests
 
-# the quick loop while developing: no apt installs, and no training, browser, Blender or benchmark tests
-# (tests/conftest.py marks them); a test that needs a Debian package it does not find is skipped
+# the quick loop while developing: no apt installs, and no training, browser, Blender, benchmark or Debian-data
+# tests (tests/conftest.py marks them)
 test-fast: $(VENV)/.installed
-	$(PY) -m pytest -q -m "not training and not browser and not blender and not bench" tests
+	$(PY) -m pytest -q -m "not training and not browser and not blender and not bench and not apt" tests
 
 model: apt-test $(VENV)/.installed
 	bash experiments/bundled_model.sh

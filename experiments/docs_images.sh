@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The two pictures the README shows, from the bundled model as installed (run after `make model`):
+# The pictures the README and docs/data.md show, from the bundled model as installed (run after `make model`):
 #   docs/demo.png: a frame at 12.5 s of `make demo`'s first video (the shipped speech clip, seed 0);
 #   experiments/reports/motion/contact_sheet.png: a pose every second (2–7 s) of test take 2_scott_0_4_4,
 #     corpus version 6 against version 5 (the same speech) and the bundled model's animation of the same

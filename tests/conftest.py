@@ -24,6 +24,13 @@ BROWSER_NAMES = {"headless_chromium", "require_chromium"}
 BLENDER_NAMES = {"read_in_blender", "blender_fbx", "write_fbx", "export_fbx", "blender"}
 
 
+#: modules whose fixtures train models or build corpora (their tests are training tests as a whole)
+TRAINING_MODULES = {"test_gesture_training", "test_speech_training", "test_gesture_learns", "test_gesture_eval",
+                    "test_corpus", "test_motion_vae", "test_speech_pretrained", "test_perception_hearings"}
+#: modules that read Debian's recorded speech or run its speech engines (make test installs them)
+APT_MODULES = {"test_real_speech", "test_voices", "test_labelled_speech", "test_timeline"}
+
+
 def _names(function) -> set[str]:
     code = getattr(function, "__code__", None)
     return set(code.co_names) | set(code.co_varnames) if code is not None else set()
@@ -31,12 +38,18 @@ def _names(function) -> set[str]:
 
 def pytest_collection_modifyitems(items):
     """Mark the browser, Blender and benchmark tests (``make test-fast`` leaves them out, with the training
-    tests: ``-m "not training and not browser and not blender and not bench"``)."""
+    tests and those that need Debian's packages: ``-m "not training and not browser and not blender and not bench
+    and not apt"``)."""
     for item in items:
         names = _names(getattr(item, "function", None))
         if names & BROWSER_NAMES:
             item.add_marker(pytest.mark.browser)
         if names & BLENDER_NAMES:
             item.add_marker(pytest.mark.blender)
-        if item.module.__name__ == "test_bench":
+        module = item.module.__name__
+        if module == "test_bench":
             item.add_marker(pytest.mark.bench)
+        if module in TRAINING_MODULES:
+            item.add_marker(pytest.mark.training)
+        if module in APT_MODULES:
+            item.add_marker(pytest.mark.apt)

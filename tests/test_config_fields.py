@@ -38,7 +38,7 @@ DOCUMENTED = {
     "speech.model.encoder.dropout": "a regularisation a researcher sets for the paper preset on BEAT2",
     "speech.model.emotion_speaker_context": "documented with the measurement that it helps (docs/presets.md)",
     "speech.wave.codec": "a recording condition of the augmentation a user can turn on",
-    "speech.real_labelled": "emotion-labelled real speech a user holds (README, training)",
+    "speech.real_labelled": "emotion-labelled real speech a user holds (docs/training.md)",
     "speech.num_workers": "data loading workers",
     "gesture.num_workers": "data loading workers",
     "extractor.num_workers": "data loading workers",

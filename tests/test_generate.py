@@ -23,7 +23,7 @@ from emogesture.models.gesture import GestureModel, GestureModelConfig
 from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.eval.seams import seam_jumps
 from emogesture.motion import SkeletonBody
-from emogesture.pipeline.generate import HOP_SECONDS, EditRequest, GesturePipeline
+from emogesture.pipeline.generate import EditRequest, GesturePipeline
 from emogesture.pipeline.postprocess import choose_seam_candidates, largest_joint_jumps, seam_costs, stitch
 
 
@@ -336,7 +336,7 @@ def test_seam_candidates_avoid_the_worst_seam(runs):
     one = pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=1))[0]
     four = pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=4))[0]
     assert np.array_equal(four.poses, pipe.generate(wave, seed=1, generation=replace(pipe.generation, seam_candidates=4))[0].poses)
-    starts_s = pipe.encode(wave, HOP_SECONDS)[1]  # where generation places its windows, and so its seams
+    starts_s = pipe.encode(wave)[1]  # where generation places its windows, and so its seams
     with torch.no_grad():
         jumps = [seam_jumps(SkeletonBody()(torch.from_numpy(q.poses), torch.from_numpy(q.trans)).numpy(), starts_s)
                  for q in (one, four)]

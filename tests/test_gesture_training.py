@@ -258,7 +258,8 @@ def test_a_model_that_hears_timing_generates_from_speech_and_its_stream_matters(
     edited = emotion_label_edit(model, conds, np.zeros(len(conds[0]), np.int64))  # an edit keeps the own stream
     assert len(edited) == 4 and edited[3] is conds[3] and edited[0] is conds[0]
     wave, _ = load_audio(next((trained / "root" / "wave16k").glob("*.wav")))
-    seq = GesturePipeline.from_run(trained / "timing").generate(wave, seed=0, seam_candidates=2)[0]
+    pipe = GesturePipeline.from_run(trained / "timing")
+    seq = pipe.generate(wave, seed=0, generation=replace(pipe.generation, seam_candidates=2))[0]
     assert len(seq.poses) == int(round(len(wave) / 16000 * 30))
 
 

@@ -174,8 +174,10 @@ def test_a_stream_read_against_the_speakers_neutral_voice(server):
             errors += [reply["error"]] if "error" in reply else []
             cleared |= "neutral_reference" in reply and reply["neutral_reference"] is None
     assert len(errors) == 3 and cleared and all("\n" not in e for e in errors)
-    assert "no neutral recording" in errors[0] and "start, stop or clear" in errors[1]  # at once
-    assert "the neutral recording: audio is too short: 1.00 s, at least 10 s" in errors[2]  # once it is heard
+    assert "no neutral recording" in errors[0]  # at once
+    # the bad value is answered at once, the short recording once it is heard (which may come first on a busy machine)
+    assert any("start, stop or clear" in e for e in errors[1:])
+    assert any("the neutral recording: audio is too short: 1.00 s, at least 10 s" in e for e in errors[1:])
     assert proc.poll() is None
 
 

@@ -139,3 +139,13 @@ def test_design_references_name_existing_sections():
                 if title not in titles:
                     missing.append(f"{name}: '{title}'")
     assert not missing, "references to sections docs/design.md does not have:\n" + "\n".join(missing)
+
+
+def test_readme_is_short_and_opens_with_the_python_api():
+    """README.md is read in ten minutes (at most 2,500 words) and its first code block is the Python API."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    words = len(readme.split())
+    assert words <= 2500, f"README.md has {words} words; move details to docs/"
+    first_block = re.search(r"^```[^\n]*\n(.*?)^```", readme, re.MULTILINE | re.DOTALL)
+    assert first_block, "README.md has no fenced code block"
+    assert "from emogesture import animate, AnimationRequest, GesturePipeline, GenerationConfig" in first_block.group(1)

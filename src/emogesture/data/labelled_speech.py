@@ -4,7 +4,7 @@ emotion.
 
 Nothing of the kind ships with the tool or can be had from a package, and the bundled model has heard only
 synthetic voices speak with emotion. Real acted emotion is what teaches a perception where a real person's
-neutral lies (README, 'Training'). A researcher or studio that holds such recordings (CREMA-D, RAVDESS,
+neutral lies (docs/training.md, 'Emotion-labelled real speech'). A researcher or studio that holds such recordings (CREMA-D, RAVDESS,
 their own) can give them to the speech model's training (``train speech --set real_labelled=MANIFEST``) and
 score a model on the speakers it never heard (``evaluate real --labelled MANIFEST``).
 

@@ -42,7 +42,6 @@ from emogesture.pipeline.animate import emotion_request
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline
 from emogesture.pipeline.neutral_reference import NeutralReference
 from emogesture.pipeline.postprocess import residual_weights
-from emogesture.pipeline.sampling import draw_seed
 from emogesture.types import SMPLXSequence
 
 __all__ = ["GestureStream", "StreamFrames", "StreamSettings"]
@@ -175,7 +174,8 @@ class GestureStream:
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
         if window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop], window_seconds=hop)[0] > 0.1:
             self.draws += 1  # new noise where the newest audio has sound; over silence the same draw goes on
-        seeds = [draw_seed(self.seed, 0, self.draws, c) for c in range(k)]
+        # the stream's own seeds: one per draw and candidate (its draws are not a recording's windows)
+        seeds = [int(np.random.SeedSequence([self.seed, self.draws, c]).generate_state(1)[0]) for c in range(k)]
         weight = residual_weights(window_activity(self.audio, TARGET_SAMPLE_RATE, [0.0]))
         drawn = self.pipe.generate_windows([np.repeat(c[:1], k, 0) for c in conds], seeds,
                                            sound=np.repeat(weight, k))  # [K, T, D]

@@ -50,9 +50,9 @@ ARM_DOWN = 1.30  # rad about Z that brings the T-pose arms down beside the body 
 REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
 MAX_ADDUCTION = 0.03  # rad the hanging arm may come closer to the body than at rest
 MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
-STROKE_WIDTH = 0.13  # s, rise half-width of a neutral stroke (return is 1.4× longer)
-STROKE_GAP = 0.33  # s, minimum spacing of neutral strokes
-P_REST = 0.08  # share of chosen stroke times left out: the hands rest or hold
+STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
+STROKE_GAP = 0.6  # s, minimum spacing of neutral strokes
+P_REST = 0.2  # share of chosen stroke times left out: the hands rest or hold
 APEX_JITTER = 0.13  # s, sd of a stroke's apex about its onset
 MAX_HOLD = 0.3  # s, longest hold at a stroke's apex
 P_TOGETHER = 0.12  # share of strokes that bring both hands together in front of the body
@@ -60,16 +60,12 @@ INWARD_TALK = 0.25  # rad the forearms turn in toward the midline while talking 
 LISTENER_YAW = 0.24  # rad: the imagined listeners sit within this turn of straight ahead
 P_TURN = 0.5  # chance that a phrase is addressed to another listener
 ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
-STROKE_AMPLITUDE = 0.9  # rad scale of a neutral stroke
-MAX_STROKE = 1.3  # rad: the largest stroke
+STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
+MAX_STROKE = 1.0  # rad: the largest stroke
 MAX_STROKE_SPEED = 8.0  # rad/s: a stroke's amplitude over its rise's half-width at most (about 5 rad/s at its fastest)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
 # the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
-IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.3))
-#: each arm channel's share of the idle layer's arm amplitude (the forearm moves more than the upper arm)
-IDLE_ARM = dict(flex=0.9, abduct=0.9, elbow=4.5, wflex=3.0, wdev=1.5, twist=3.0, inward=1.0)
-#: each arm channel's gain in a stroke (the elbow's bend carries most of a beat)
-STROKE_GAIN = dict(flex=0.8, abduct=0.85, elbow=2.4, wflex=1.8, wdev=1.2, twist=1.8, inward=1.0)
+IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
 COLLAR, SHOULDER, ELBOW, WRIST = (13, 14), (16, 17), (18, 19), (20, 21)
 HAND = (tuple(range(25, 40)), tuple(range(40, 55)))  # the 15 finger joints of each hand
@@ -155,8 +151,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
                 pitch=0.03 * lift * amp ** 0.5)  # leaning in while talking
     for side in range(2):
         a = arms[side]
-        noise = (smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
-                 * np.array([IDLE_ARM[k] for k in arm_keys]))
+        noise = smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
         wrist_noise = smooth_noise(rng, n, IDLE["wrist"][1] * FPS, 3) * IDLE["wrist"][0] * np.sqrt(amp)
         noise[:, 3:6] += wrist_noise
         for i, k in enumerate(arm_keys):
@@ -217,7 +212,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
                                     + np.minimum(t - apex + 0.05, 0.0) / (1.5 * rise)) ** 2)
         for side in sides:
             for k, v in direction.items():
-                arms[side][k] += a_k * v * STROKE_GAIN[k] * bump
+                arms[side][k] += a_k * v * bump
             hands.add_shape(fingers[side], shape, shape_bump, float(np.clip(a_k / STROKE_AMPLITUDE, 0.3, 1.0)))
         body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
         body["lean"] += 0.04 * a_k * bump
