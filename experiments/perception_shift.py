@@ -28,8 +28,7 @@ from emogesture.audio import load_audio
 from emogesture.audio.wave_augment import recording_changes
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import open_cache
-from emogesture.models.generation import GenerationConfig
-from emogesture.pipeline.generate import GesturePipeline
+from emogesture.pipeline.generate import bundle_generation
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
@@ -39,14 +38,6 @@ def pink(length: int, rng: np.random.Generator) -> np.ndarray:
     spec /= np.sqrt(np.maximum(np.arange(len(spec)), 1))
     out = np.fft.irfft(spec, length)
     return (0.05 * out / out.std()).astype(np.float32)
-
-
-def bundled_semitones(speech_model: str) -> float:
-    """The ``perception_semitones`` of the bundle a speech.json belongs to (the default without one)."""
-    beside = Path(speech_model).parent / "gesture.json" if speech_model.endswith(".json") else None
-    if beside is not None and beside.exists():
-        return GesturePipeline.from_run(beside).generation.perception_semitones
-    return GenerationConfig().perception_semitones
 
 
 def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", semitones: str | None = None) -> None:
@@ -64,7 +55,7 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
     variants = {f"{which}, as recorded": lambda w: w,
                 **{name: lambda w, c=change: np.asarray(c(w), f32) for name, change in recording_changes(rng).items()},
                 "pink noise, no speech": lambda w: pink(len(w), rng)}
-    semitones = float(semitones) if semitones is not None else bundled_semitones(speech_model)
+    semitones = float(semitones) if semitones is not None else bundle_generation(speech_model).perception_semitones
     rows = {}
     for name, change in variants.items():
         hits, dist, voice, low, trust, labels = [], [], [], [], [], []

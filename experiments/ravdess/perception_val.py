@@ -8,25 +8,16 @@ Usage: perception_val.py SPEECH_MODEL MANIFEST SPLIT OUT.json [SEMITONES]
 (SEMITONES: the pitch-shifted hearings, as the generation setting perception_semitones; default: the setting of
 the gesture model beside SPEECH_MODEL when it is a bundle's speech.json, else 3)"""
 import json, sys
-from pathlib import Path
 from collections import Counter, defaultdict
 import numpy as np
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
-from emogesture.pipeline.generate import GesturePipeline
+from emogesture.pipeline.generate import bundle_generation
 from emogesture.pipeline.speech import SpeechLatentEncoder
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.types import EMOTIONS
 
 model, manifest, split, out = sys.argv[1:5]
-def bundled_semitones(speech_model: str) -> float:
-    """The perception_semitones of the bundle a speech.json belongs to (3 without one)."""
-    beside = Path(speech_model).parent / "gesture.json" if speech_model.endswith(".json") else None
-    if beside is not None and beside.exists():
-        return GesturePipeline.from_run(beside).generation.perception_semitones
-    return 3.0
-
-
-semis = float(sys.argv[5]) if len(sys.argv) > 5 else bundled_semitones(model)
+semis = float(sys.argv[5]) if len(sys.argv) > 5 else bundle_generation(model).perception_semitones
 enc = SpeechLatentEncoder.from_run(model)
 perc = perception_of(enc)
 recs = labelled_recordings(read_manifest(manifest), split, 10.0)

@@ -311,3 +311,12 @@ class GesturePipeline:
 def output_stem(speech: Path, seed: int, sample: int, edit_tag: str = "") -> str:
     """The file name, without extension, of one generated sample: ``<speech stem><edit>_seed<seed>_<sample>``."""
     return f"{speech.stem}{edit_tag}_seed{seed}_{sample}"
+
+
+def bundle_generation(speech_model: str | PathLike[str]) -> GenerationConfig:
+    """The generation settings of the bundle a speech model file belongs to (the ``gesture.json`` beside
+    it), so that its perception is measured as ``generate`` hears with it; the defaults without one."""
+    beside = Path(speech_model).parent / "gesture.json" if str(speech_model).endswith(".json") else None
+    if beside is not None and beside.exists():
+        return GesturePipeline.from_run(beside).generation
+    return GenerationConfig()

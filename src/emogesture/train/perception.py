@@ -157,7 +157,7 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     if real_voices:
         perception.info.update(real_voices=list(real_voices), real_stretches=int(real_stretches))
     if labelled is not None:
-        perception.info.update(labelled=str(labelled), labelled_windows=int(len(real_emotions)),
+        perception.info.update(labelled=Path(labelled).name, labelled_windows=int(len(real_emotions)),
                                labelled_held_out_windows=int(len(held_emotions) - len(cache.split(split).emotion)))
     # the weights file a gesture model trained on this network names (the file's checksum changes here)
     before = (loaded.metadata.emotion_perception or {}).get("info") or {}
