@@ -155,6 +155,48 @@ class LatentRange:
 
 
 @dataclass
+class LinearReadout:
+    """A multinomial logistic regression on standardised features: ``softmax(weight @ ((x - mean) / scale) +
+    bias)`` over :attr:`labels` (the emotions it was fitted on; the others get probability 0). The read-out of a
+    front end trained on real speech (:mod:`emogesture.pipeline.voice_features`)."""
+
+    labels: list[str]
+    mean: np.ndarray  # [F]
+    scale: np.ndarray  # [F]
+    weight: np.ndarray  # [K, F]
+    bias: np.ndarray  # [K]
+    front_end: str = "whisper-tiny.en"
+    info: dict = field(default_factory=dict)
+
+    def log_probs(self, features: np.ndarray) -> np.ndarray:
+        """Features ``[W, F]`` -> log-probabilities ``[W, 8]`` over ``EMOTIONS``."""
+        x = (np.asarray(features, np.float64) - self.mean) / self.scale
+        fitted = log_softmax(x @ self.weight.T + self.bias)
+        out = np.full((len(x), len(EMOTIONS)), -np.inf)
+        out[:, [EMOTIONS.index(label) for label in self.labels]] = fitted
+        return out
+
+    def to_state(self) -> tuple[dict, dict[str, np.ndarray]]:
+        """Its labels and front end (JSON) and its arrays (named ``heard.<array>``)."""
+        return ({"labels": list(self.labels), "front_end": self.front_end, "info": self.info},
+                {f"heard.{k}": getattr(self, k) for k in ("mean", "scale", "weight", "bias")})
+
+    @classmethod
+    def from_state(cls, record: dict, arrays: dict[str, np.ndarray]) -> "LinearReadout":
+        """The inverse of :meth:`to_state`."""
+        try:
+            values = {k: np.asarray(arrays[f"heard.{k}"], np.float64) for k in ("mean", "scale", "weight", "bias")}
+        except KeyError as e:
+            raise EmogestureError(f"emotion perception: the read-out's array {e} is missing") from None
+        readout = cls(list(record["labels"]), front_end=record.get("front_end", "whisper-tiny.en"),
+                      info=dict(record.get("info", {})), **values)
+        if readout.weight.shape != (len(readout.labels), len(readout.mean)) or readout.bias.shape != (len(readout.labels),):
+            raise EmogestureError(f"emotion perception: a read-out of {len(readout.labels)} emotions with weights "
+                                  f"{readout.weight.shape} and bias {readout.bias.shape}")
+        return readout
+
+
+@dataclass
 class EmotionPerception:
     """Where a speech model's emotion and style latents lie on its training speech (module docstring)."""
 
@@ -169,6 +211,8 @@ class EmotionPerception:
     band_means: np.ndarray | None = None  # [B, D]
     #: how many of ``voice.means`` are the training corpus's speakers (the real speakers' follow); None: all
     corpus_voices: int | None = None
+    #: the read-out of a front end trained on real speech (what is heard where its features are at hand)
+    heard: LinearReadout | None = None
 
     def trust(self, emotion: np.ndarray, style: np.ndarray) -> np.ndarray:
         """Per-window trust ``[W]``: the smaller of the emotion's and the voice's."""
@@ -234,6 +278,15 @@ class EmotionPerception:
         """The neutral mean of the training corpus ``[D]`` (the first; real voices' means come after)."""
         return self.emotion.means[self.labels.index("neutral")]
 
+    def heard_latents(self, probs: np.ndarray) -> np.ndarray:
+        """Probabilities ``[W, 8]`` over ``EMOTIONS`` -> ``[W, D]``: the corpus's emotion means weighted by them
+        (an emotion without a mean left out, the rest renormalised): the latent of the emotion heard."""
+        first = {label: self.labels.index(label) for label in self.labels}
+        ks = [k for k, e in enumerate(EMOTIONS) if e in first]
+        weights = np.asarray(probs, np.float64)[:, ks]
+        weights = weights / np.maximum(weights.sum(1, keepdims=True), 1e-12)
+        return weights @ self.emotion.means[[first[EMOTIONS[k]] for k in ks]]
+
     def typical_speaker(self) -> int:
         """Index (into ``voice.means``) of the training speaker whose mean style latent lies nearest the
         centre of all the corpus speakers' means, in the voice's own distance."""
@@ -258,6 +311,9 @@ class EmotionPerception:
         if self.band_means is not None:
             record["band_labels"] = list(self.band_labels)
             arrays["band_means"] = self.band_means
+        if self.heard is not None:
+            record["heard"], heard_arrays = self.heard.to_state()
+            arrays.update(heard_arrays)
         return record, {f"{TENSOR_PREFIX}{k}": np.asarray(v, np.float64) for k, v in arrays.items()}
 
     @classmethod
@@ -274,5 +330,6 @@ class EmotionPerception:
             if band.ndim != 2 or band.shape[1:] != emotion.means.shape[1:] or len(band) != len(labels):
                 raise EmogestureError(f"emotion perception: {len(labels)} telephone-band labels for telephone-band "
                                       f"means of shape {band.shape}; the emotion means are {emotion.means.shape}")
+        heard = LinearReadout.from_state(record["heard"], arrays) if record.get("heard") else None
         return cls(list(record["labels"]), emotion, voice, dict(record.get("info", {})),
-                   float(record.get("temperature", 1.0)), labels, band, record.get("corpus_voices"))
+                   float(record.get("temperature", 1.0)), labels, band, record.get("corpus_voices"), heard)

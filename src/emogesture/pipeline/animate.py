@@ -32,7 +32,7 @@ from emogesture.models.generation import GenerationConfig
 from emogesture.motion.rigs import rig_named
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.neutral_reference import MIN_SECONDS, reference_name
-from emogesture.pipeline.perception import auto_emotion, perception_of
+from emogesture.pipeline.perception import auto_emotion, heard_by_front_end, perception_of
 from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.postprocess import candidates_drawn
 from emogesture.pipeline.timeline import EmotionTimeline, is_timeline
@@ -299,7 +299,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
     if edit is not None and emotion_wave is not None:
         enc, starts = pipe.encode(emotion_wave, parts=pipe.edit_source_parts("emotion"), generation=settings)
         perceived.append(pipe.perceive(enc, starts, source=str(request.emotion_from)))
-        edit.emotion_from = (auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech))
+        edit.emotion_from = (auto_emotion(enc.emotion, enc.style, perception_of(pipe.speech),
+                                          heard_by_front_end(enc, perception_of(pipe.speech)))
                              if request.mode == "auto" else enc.emotion)
     if edit is not None and style_wave is not None:
         edit.style_from = pipe.encode(style_wave, parts=pipe.edit_source_parts("style"), generation=settings)[0].style

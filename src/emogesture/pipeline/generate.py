@@ -36,7 +36,8 @@ from emogesture.pipeline.sampling import draw_seed, edit_emotion, generate_from_
 from emogesture.pipeline.postprocess import (candidates_drawn, choose_seam_candidates, largest_joint_jumps,
                                              residual_weights, stitch)
 from emogesture.pipeline.neutral_reference import NeutralReference, check_reference, reference_name
-from emogesture.pipeline.perception import auto_emotion, auto_style, fallback_style_of, perceive, perception_of
+from emogesture.pipeline.perception import (auto_emotion, auto_style, fallback_style_of, heard_by_front_end, perceive,
+                                           perception_of)
 from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.speech import EncodedWindows, SpeechLatentEncoder
 from emogesture.pipeline.timeline import EmotionTimeline, timeline_latents
@@ -136,7 +137,8 @@ class GesturePipeline:
         settings = generation or self.generation
         return self.speech.encode(waveform, TARGET_SAMPLE_RATE, settings.hop_seconds, progress, times, parts,
                                   noise_suppression=settings.noise_suppression,
-                                  perception_semitones=settings.perception_semitones if perceived else 0.0)
+                                  perception_semitones=settings.perception_semitones if perceived else 0.0,
+                                  front_end=perceived)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -203,7 +205,8 @@ class GesturePipeline:
         c, e, s = enc.content.copy(), enc.emotion.copy(), enc.style.copy()
         perception = perception_of(self.speech)
         if emotion_mode == "auto":
-            e, s = auto_emotion(e, s, perception), auto_style(s, perception, fallback_style_of(self.loaded))
+            e, s = (auto_emotion(e, s, perception, heard_by_front_end(enc, perception)),
+                    auto_style(s, perception, fallback_style_of(self.loaded)))
         if edit is not None:
             n = len(c)
             target = None
@@ -212,7 +215,8 @@ class GesturePipeline:
                     raise EmogestureError("an emotion timeline needs the windows' start times and the duration")
                 shares = edit.emotion_timeline.shares(starts_s, WINDOW_SECONDS, duration_s)
                 e = timeline_latents(edit.emotion_timeline, shares, enc.emotion,
-                                     auto_emotion(enc.emotion, enc.style, perception),
+                                     auto_emotion(enc.emotion, enc.style, perception,
+                                                  heard_by_front_end(enc, perception)),
                                      self.loaded.metadata.emotion_latent_means or {})
             elif edit.emotion_from is not None:
                 target = edit.emotion_from[np.arange(n) % len(edit.emotion_from)]

