@@ -40,10 +40,10 @@ def rhythm_paragraph(rows: dict, checks: dict) -> str:
                 f"  rhythm gain (how much better the arms' speed follows the speech's onsets than mismatched audio's)\n"
                 f"  is {ours['gain']:.3f} on the test texts ({ours['gain_over_spread']:.1f} spreads of the mismatched "
                 f"scores), against\n  {gt['gain']:.3f} for the corpus's own motion; generated with another window's "
-                f"timing stream it falls to\n  {other['gain']:.3f} (`experiments/README.md`, \"Rhythm\").")
+                f"timing stream it falls to\n  {other['gain']:.3f} (`experiments/rhythm/README.md`).")
     return (f"- **The strokes do not yet fall on the syllables.** Within a window the strokes are not timed by the\n"
             f"  speech: the rhythm gain is {ours['gain']:.3f} ({ours['gain_over_spread']:.1f} spreads) on the test texts,\n"
-            f"  against {gt['gain']:.3f} for the corpus's own motion (`experiments/README.md`, \"Rhythm\").")
+            f"  against {gt['gain']:.3f} for the corpus's own motion (`experiments/rhythm/README.md`).")
 
 
 def seams_paragraph(checks: dict) -> str:
@@ -403,7 +403,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   the range of real conversational motion capture, joint by joint. This model's hands move at
   {ours['Speed']:.2f} m/s (the ground truth's {gt['Speed']:.2f}), and its wrists turn at {wrist_ratio:.0%} of the
   ground truth's angular speed ({wrists}; two real BEAT takes: 0.023–0.038 / 0.032–0.041;
-  `emogesture motion-stats`; the tables are in `experiments/README.md`).
+  `emogesture motion-stats`; the tables are in `experiments/corpus/README.md`).
   The gestures are generic beats and reaches, not the meaningful (iconic, deictic) gestures people make.
 - **Speakers.** `--style-from` can only take styles like the ones it knows (its train speakers'); another
   voice gives a style somewhere between them.

@@ -120,11 +120,12 @@ def canvas_pixels(driver, selector: str) -> np.ndarray:
 
 
 def experiment_module(name: str):
-    """The script ``experiments/<name>.py`` imported as a module (experiments are scripts, not a package)."""
+    """The script ``experiments/<name>.py`` imported as a module (experiments are scripts, not a package); ``name``
+    may name a topic folder, e.g. ``perception/perception_readout``."""
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)

@@ -55,7 +55,7 @@ DOCUMENTED = {
     "prepare.features.include_translation": "the root translation as motion features, for BEAT2 training",
     "corpus.seed": "the synthetic corpus's seed (`emogesture corpus --seed`)",
 }
-#: Tried, not adopted, removed: reports in experiments/reports/.
+#: Tried, not adopted, removed: their reports are in the experiments' topic folders (experiments/README.md).
 RETIRED = ["model.vae.frames_per_token", "model.vae.latent_tokens", "model.vae.decoder_smoothing",
            "model.denoiser.timing_tokens", "losses.vspeed", "losses.vaccel", "losses.align_speed",
            "losses.align_accel", "losses.wrist_features", "losses.finger_features", "real_neutral",

@@ -1,6 +1,6 @@
 """Gesture-model training and model evaluation through the command line, on a small fixture.
 
-The short version of experiments/gesture_model.sh: every variant trains a few steps, then
+The short version of experiments/gesture_model/gesture_model.sh: every variant trains a few steps, then
 ``evaluate gesture --model`` generates with all of them and writes the Table-1 report and the checks.
 Also unit tests of the pieces of that report (seam jumps, edit targets, checks).
 """

@@ -222,13 +222,13 @@ def test_onset_coupling_of_many_short_sequences_is_not_raised_by_chance():
 
 
 def test_rhythm_lag_curve_script_writes_its_report(tmp_path):
-    """The short version of experiments/rhythm_lag_curve.py: the bundled model on two takes of a small
+    """The short version of experiments/rhythm/rhythm_lag_curve.py: the bundled model on two takes of a small
     corpus, two settings; the report's curves are real correlations at every lag and differ by setting."""
     import sys
     from pathlib import Path
 
     names = make_root(tmp_path / "root", speakers=(1,), takes=(2, 66))
-    script = Path(__file__).resolve().parents[1] / "experiments" / "rhythm_lag_curve.py"
+    script = Path(__file__).resolve().parents[1] / "experiments" / "rhythm" / "rhythm_lag_curve.py"
     from emogesture.assets import bundled_model_file
 
     subprocess.run([sys.executable, str(script), str(tmp_path / "root"), str(bundled_model_file("gesture")),

@@ -1,4 +1,4 @@
-"""experiments/perception_readout.py's read-outs: the nearest-mean posterior picks the nearest emotion mean,
+"""experiments/perception/perception_readout.py's read-outs: the nearest-mean posterior picks the nearest emotion mean,
 and summing it with the head's log-probabilities lets either decide where the other is unsure."""
 
 
@@ -11,7 +11,7 @@ from helpers import experiment_module
 
 
 def _module():
-    return experiment_module("perception_readout")
+    return experiment_module("perception/perception_readout")
 
 
 def test_nearest_mean_posterior_and_the_sum_with_the_head():

@@ -35,8 +35,10 @@ PATTERNS: tuple[tuple[str, re.Pattern[str]], ...] = (
     ("path outside the repository", re.compile(r"\.\./shared/")),
 )
 
-#: Machine output kept as data: the JSON written by the evaluation and benchmark commands.
+#: Machine output kept as data: the JSON written by the evaluation and benchmark commands (the experiments' reports
+#: lie in experiments/reports/ and in each topic's own reports/ folder, experiments/<topic>/reports/).
 DATA_PREFIXES = ("experiments/reports/", "bench/results/")
+DATA_FOLDER = re.compile(r"^experiments/(?:[^/]+/)*reports/")
 #: This file: its examples are the very text it looks for.
 THIS_FILE = "tests/test_repository_text.py"
 
@@ -62,7 +64,8 @@ def _text(path: Path) -> str | None:
 
 
 def _skipped(name: str) -> bool:
-    return name == THIS_FILE or (name.endswith(".json") and name.startswith(DATA_PREFIXES))
+    return name == THIS_FILE or (name.endswith(".json") and (name.startswith(DATA_PREFIXES)
+                                                               or DATA_FOLDER.match(name) is not None))
 
 
 def find_hits(text: str) -> list[tuple[int, str, str]]:

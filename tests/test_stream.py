@@ -69,7 +69,7 @@ def test_joins_are_no_rougher_than_offline_generation(pipe, talk):
     poses, trans, starts = stream(pipe, talk, [1600] * (len(talk) // 1600))  # 100-ms chunks
     offline = pipe.generate(talk)[0]
     assert len(poses) == offline.num_frames
-    # the target, at most 1.5 on average over held-out takes, is experiments/stream_quality.py's; one clip's
+    # the target, at most 1.5 on average over held-out takes, is experiments/live/stream_quality.py's; one clip's
     # largest jump scatters around it (0.61-1.56 per take for the bundled model), so one clip gets 1.75
     assert largest_jump(poses, trans) <= 1.75 * largest_jump(offline.poses, offline.trans)
     steps = np.linalg.norm(np.diff(joints(poses, trans), axis=0), axis=-1).max(-1)  # [T - 1]: frame t -> t + 1

@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 source experiments/common.sh
 source experiments/recipe.sh
 RUN=$WORK/ravdess
-REPORT=experiments/reports/ravdess
+REPORT=experiments/ravdess/reports
 mkdir -p "$RUN" "$REPORT"
 ravdess_manifest "$RUN/ravdess.csv"
 [ -f "$RUN/ravdess_calm.csv" ] || $EG labelled-speech ravdess "$RAVDESS" --out "$RUN/ravdess_calm.csv" "${RAVDESS_SPLIT[@]}" --calm neutral

@@ -13,7 +13,7 @@ Used to measure and to change real recordings for the checks of the emotion perc
 (`experiments/real_voice_emotions.py` gives a real voice each emotion's corpus prosody). Real read speech
 moves its pitch further than the corpus's synthetic voices do: a span of 6.3-9.1 semitones for three of the
 real recordings of :mod:`emogesture.data.real_speech` (2.8 for a man reading out card names), against a
-median of 3.3 over the corpus's neutral takes (4.4 happy, 4.5 surprised; `experiments/README.md`).
+median of 3.3 over the corpus's neutral takes (4.4 happy, 4.5 surprised; `experiments/perception/README.md`).
 """
 
 from __future__ import annotations

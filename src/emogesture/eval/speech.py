@@ -29,7 +29,7 @@ from emogesture.eval.split_latents import encode_split
 from emogesture.pipeline.speech import SpeechLatentEncoder
 
 RECON_COLUMNS = {"Self": "self_recon", "XCon": "cross_content", "XEmo": "cross_emotion", "XSty": "cross_style"}
-ACCURACY_BAR = 0.9  # EA and SA: the bar the speech experiment set itself (experiments/README.md)
+ACCURACY_BAR = 0.9  # EA and SA: the bar the speech experiment set itself (experiments/speech_model/README.md)
 NEAR_CHANCE = 0.25  # a probe of the other factor "near chance": within this share of the way from chance to 1
 CONTENT_USE_BAR = 1.05  # swapping the content latent must raise the reconstruction error by at least 5 %
 

@@ -8,7 +8,7 @@ the prediction: the noise ε̂ in the paper (the scheduler's ``prediction_type``
 ``num_conditions = 1`` the single latent ``m`` of the no-disentanglement ablation replaces ``(c, e, s)``.
 
 The speech's timing reaches the motion through the motion decoder (``MotionVAEConfig.timing_features``);
-timing tokens in the denoiser were tried and not adopted (reports in ``experiments/reports/``).
+timing tokens in the denoiser were tried and not adopted (``experiments/rhythm/README.md``).
 """
 
 from __future__ import annotations

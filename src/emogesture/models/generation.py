@@ -43,7 +43,7 @@ class GenerationConfig:
     #: stream (``D(z, zeros)`` above); ``"onsets"``, only its onset strength, the loudness heard in both
     #: decodings, so that guidance scales when the syllables start and not where the speech is loud (the
     #: loudness moved the arms up to a second early, in time with audio a second off as well as with the
-    #: window's own; experiments/README.md, "When the arms move").
+    #: window's own; experiments/rhythm/README.md, "When the arms move").
     timing_guidance_on: str = "stream"
     #: σ, in frames, of a Gaussian smoothing of the decoded features over time (0 = none).
     output_smoothing: float = 0.0
@@ -90,7 +90,7 @@ class GenerationConfig:
         """``paper``: 50 DDIM steps and nothing after sampling. ``tiny``: 10 DDIM steps, half the calibrated
         residual noise, and — for the variants whose decoder hears the speech's timing (``joint``,
         ``disjoint``) — timing guidance 6 on the onsets (``timing_guidance_on="onsets"``) with a 4-Hz
-        low-pass, chosen together on the val split (``experiments/reports/rhythm/onset_guidance_val.md``)."""
+        low-pass, chosen together on the val split (``experiments/rhythm/reports/rhythm/onset_guidance_val.md``)."""
         if name == "paper":
             return cls()
         if name == "tiny":

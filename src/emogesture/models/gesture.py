@@ -66,7 +66,7 @@ class GestureModelConfig:
         "sample"``) instead of ε, and the motion decoder of the variants that hear speech through one
         (``joint``, ``disjoint``) also reads the speech's timing stream (:meth:`MotionVAEConfig.preset`).
         How either generates is :meth:`emogesture.models.generation.GenerationConfig.preset`'s; the
-        reasons and measurements: ``experiments/README.md``, "Motion prior".
+        reasons and measurements: ``experiments/motion_prior/README.md``.
         """
         n = 1 if variant == "no_audio" else 3
         diffusion = DiffusionConfig(prediction_type="sample") if name == "tiny" else DiffusionConfig()

@@ -16,7 +16,7 @@ With one memory token the cross-attention softmax is identically 1, so each cros
 Windows may be shorter than ``frames`` (the maximum; the positional tables are sized to it).
 
 Options beside MLD's design (each off in the ``paper`` preset; measurements behind them:
-``experiments/README.md``, "Motion prior"):
+``experiments/motion_prior/README.md`` and ``experiments/rhythm/README.md``):
 
 * ``low_frequency_path = F > 0`` (tiny): a linear path beside the transformers. The encoder adds
   ``Linear(DCT_F(frame embeddings))`` to μ, where ``DCT_F`` takes the first F DCT-II coefficients over
@@ -34,8 +34,8 @@ Options beside MLD's design (each off in the ``paper`` preset; measurements behi
   starts at zero (the prior begins as MLD's). :meth:`MotionVAE.decode_pair` decodes with and without the
   stream, for timing guidance at generation (:class:`~emogesture.models.generation.GenerationConfig`).
 
-Tried and not adopted (reports in ``experiments/reports/``): several frames per token, several latent tokens,
-a smoothing that ends the decoder.
+Tried and not adopted: several frames per token, several latent tokens (``experiments/motion_prior/``), a
+smoothing that ends the decoder (``experiments/rhythm/``).
 """
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ class MotionVAEConfig:
         strokes from the speech's timing stream (2 numbers a frame, smoothed over 2 frames); the wrists'
         12 feature columns (in the default 282-number layout) get a path of their own of 24 cosines
         (1.15 Hz), for the direction each stroke turns a wrist, which the stream cannot say. The reasons
-        and measurements: ``experiments/README.md``, "Motion prior".
+        and measurements: ``experiments/motion_prior/README.md``.
         """
         if name == "paper":
             return cls(feature_dim=feature_dim, frames=frames)

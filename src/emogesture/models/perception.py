@@ -29,7 +29,7 @@ temperature fitted on the held-out windows within the range (their mean negative
 that its probabilities say how often it is right there (the posterior of the means alone, over a
 latent of many dimensions, is near 0 or 1 everywhere); the division changes no label. Chosen on the
 val split's held-out voices under changed recording conditions, against the head alone and the sum
-everywhere or weighted by the trust (`experiments/reports/speech_tuned/perception_readout_val.md`).
+everywhere or weighted by the trust (`experiments/speech_training/reports/speech_tuned/perception_readout_val.md`).
 
 A voice pitched unlike the training voices is read partly by its pitch: the corpus gives its emotions
 their own pitch, so a voice moved 4 semitones down sounds sadder or more contemptuous to the model. The
@@ -37,7 +37,7 @@ generation setting ``perception_semitones`` (3 by default) has the emotion encod
 three times, as recorded and with the voice (pitch and formants, tempo kept) moved that many semitones up
 and down; the probabilities reported are the mean of the three readings (:func:`heard_probabilities`). On
 the val split's held-out voices this was right more often in every pitch condition and as recorded
-(`experiments/reports/perception_hearings/`). Only what is heard changes; the trust and the latents the
+(`experiments/perception/reports/perception_hearings/`). Only what is heard changes; the trust and the latents the
 gesture model is given are the recording's own.
 
 A real voice lies apart from the synthetic training voices in the emotion latent as well, so the corpus's
@@ -61,8 +61,8 @@ emotion one more mean, of the training takes heard through a telephone band (:fu
 which only the read-out uses (:meth:`EmotionPerception.read_range`: the head plus the posterior summed over
 each emotion's means, within the same threshold). The trust, the neutral mean and the latents ``auto``
 animates stay the corpus's: such a recording is heard better, not animated differently
-(`experiments/README.md`, "Telephone-band means"; measured on that simulated band only, as no real telephone
-recording with a known emotion is at hand).
+(`experiments/perception/README.md`, "Telephone-band means in the read-out"; measured on that simulated band
+only, as no real telephone recording with a known emotion is at hand).
 """
 
 from __future__ import annotations

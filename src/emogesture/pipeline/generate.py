@@ -46,7 +46,7 @@ from emogesture.types import EMOTIONS, SMPLXSequence
 
 WINDOW_SECONDS = 10.0
 #: Seconds between the starts of a long audio's windows, unless a model's settings say otherwise
-#: (experiments/README.md, "Longer overlaps": 3-s overlaps make smoother seams than 2-s ones).
+#: (experiments/gesture_model/README.md, "Longer overlaps": 3-s overlaps make smoother seams than 2-s ones).
 HOP_SECONDS = GenerationConfig().hop_seconds
 #: Draws denoised together: each DDIM step is one batched denoiser call, so larger batches spread its
 #: fixed cost; every draw has its own generator, so the result does not depend on the batch.

@@ -55,8 +55,8 @@ class GestureLossWeights:
     ld: float = 1.0
     align: float = 1.0
     valign: float = 1.0
-    # tried and not adopted (reports in experiments/reports/): joint speed and acceleration terms, finger
-    # and wrist feature weights
+    # tried and not adopted: joint speed and acceleration terms (experiments/rhythm/), finger and wrist feature
+    # weights (experiments/motion_prior/)
     audio_rec: float = 1.0  # no_audio variant: MFCC autoencoder reconstruction
 
 

@@ -32,9 +32,10 @@ from emogesture.train.engine import AveragedWeightsMixin, step_generator
 class SpeechTrainConfig:
     """Everything a speech-model run needs besides the engine settings; stored in the run."""
 
-    #: Tried and not adopted, removed (reports in experiments/reports/): a word-order scramble of the emotion
-    #: encoder's input, real voices taught as neutral or given the corpus's emotions, a pull of the real
-    #: windows' emotion latents toward the batch's (see :func:`emogesture.config.from_dict`).
+    #: Tried and not adopted, removed: a word-order scramble of the emotion encoder's input
+    #: (experiments/speech_model/), real voices taught as neutral or given the corpus's emotions, a pull of
+    #: the real windows' emotion latents toward the batch's (experiments/real_voices_in_training/; see
+    #: :func:`emogesture.config.from_dict`).
     RETIRED: ClassVar[dict] = {"emotion_scramble": 0, "emotion_scramble_share": ANY_VALUE, "real_neutral": [],
                                "real_neutral_weight": ANY_VALUE, "real_neutral_pull": 0.0,
                                "real_emotion_share": ANY_VALUE}

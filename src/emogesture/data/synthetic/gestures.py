@@ -27,7 +27,7 @@ local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
 * breathing, a tremor for fear, the jaw opening with the speech energy.
 
 Measured with ``emogesture motion-stats`` against real conversational motion capture: see
-``experiments/README.md``.
+``experiments/corpus/README.md``.
 
 Mirror rule: the right side uses the left side's channels with the Y and Z rotation components
 negated (a reflection through the body's mid-plane). Lower-body joints stay at zero.
