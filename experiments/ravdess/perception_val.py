@@ -5,7 +5,7 @@ per-emotion accuracy, the confusion matrix, the share of windows `--emotion auto
 label to OUT.json, and prints the summary.
 
 Usage: perception_val.py SPEECH_MODEL MANIFEST SPLIT OUT.json [SEMITONES]
-(SEMITONES: the pitch-shifted hearings, as the generation setting perception_semitones; default: the setting of
+(the front end trained on real speech hears the windows where the perception reads it; SEMITONES: the pitch-shifted hearings, as the generation setting perception_semitones; default: the setting of
 the gesture model beside SPEECH_MODEL when it is a bundle's speech.json, else 3)"""
 import json, sys
 from collections import Counter, defaultdict
@@ -23,7 +23,7 @@ perc = perception_of(enc)
 recs = labelled_recordings(read_manifest(manifest), split, 10.0)
 conf = defaultdict(Counter); trusted = []; rows = {}
 for name, (wave, emotion) in recs.items():
-    e, starts = enc.encode(wave, hop_seconds=7.0, perception_semitones=semis)
+    e, starts = enc.encode(wave, hop_seconds=7.0, perception_semitones=semis, front_end=True)
     heard = perceive(e, starts, perc, name)
     for lab in heard.labels:
         conf[emotion][lab] += 1

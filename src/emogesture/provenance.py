@@ -41,8 +41,9 @@ def trained_with(gesture: LoadedModel, speech: LoadedModel) -> bool:
     or of the file a perception calibration copied ``speech`` from (the calibration adds its arrays to the file);
     True for a gesture model that names none."""
     want = gesture.metadata.speech_weights_sha256
-    calibrated_from = ((speech.metadata.emotion_perception or {}).get("info") or {}).get("calibrated_from")
-    return not want or want in (speech.weights_sha256, calibrated_from)
+    info = (speech.metadata.emotion_perception or {}).get("info") or {}
+    # (and of the file a front end's read-out was added to: emogesture.train.heard_readout)
+    return not want or want in (speech.weights_sha256, info.get("calibrated_from"), info.get("read_out_added_to"))
 
 
 def calibration_splits(loaded: LoadedModel) -> dict[str, str]:

@@ -104,6 +104,7 @@ def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str]
                         labelled=Path(labelled).name, split=split, val_windows=int(len(val_y)),
                         val_accuracy={str(c): round(v, 4) for c, v in scores.items()})
     perception.heard = readout
+    perception.info["read_out_added_to"] = loaded.weights_sha256  # gesture models trained on it still match
     record, tensors = perception.to_state()
     keep = {k: v for k, v in loaded.tensors.items() if not k.startswith("emotion_perception.")}
     save_model(out, "speech", loaded.model, loaded.config, loaded.metadata.replace(emotion_perception=record),

@@ -7,9 +7,9 @@ emotion perception's calibration, the labelled speech's actor split and the gene
 ships with. :func:`build_bundle` runs every stage that is not finished yet (a stage folder whose model
 reached its steps is kept; an interrupted one resumes from its checkpoint), calibrates, and bundles.
 
-A stage marked ``needs: labelled`` runs only when labelled speech (RAVDESS) is given; the calibration then
-takes the labelled speakers' means (``perception.labelled``) instead of the real voices'
-(``perception.real_voices``).
+A stage marked ``needs: labelled`` runs only when labelled speech (RAVDESS) is given. With labelled speech and
+``perception.front_end``, the calibrated speech model's perception also gets the read-out of the front end
+trained on real speech (:mod:`emogesture.train.heard_readout`), fitted on the corpus and the labelled speakers.
 """
 
 from __future__ import annotations
@@ -186,8 +186,8 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
     perception = recipe.perception
     if not (run / "speech_calibrated" / "model.json").exists():
         calibrate_perception_run(speech, cache, run / "speech_calibrated",
-                                 telephone_means=bool(perception.get("telephone_means")), labelled=labelled,
-                                 real_voices=() if labelled is not None else tuple(perception.get("real_voices", ())))
+                                 telephone_means=bool(perception.get("telephone_means")),
+                                 real_voices=tuple(perception.get("real_voices", ())))
     if perception.get("front_end") and labelled is not None and not (run / "speech_heard" / "model.json").exists():
         from emogesture.train.heard_readout import calibrate_heard_run
 

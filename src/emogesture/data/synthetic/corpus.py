@@ -43,9 +43,8 @@ from emogesture.errors import ConfigError, EmogestureError
 #: speaker id (30 voices; two voice families only among the held-out actors; speakers 1-14 as before);
 #: 5: hands that curl and take shapes, a body that turns toward listeners, forearms toward the midline and
 #: hands together, fewer strokes with jittered apexes, holds and rests; 6: arms that hang nearer the body,
-#: a wider turn toward the listeners, stroke apexes a little further off their onsets; 7: as lively as people
-#: (wrists about 0.44 m/s rather than 0.27: more strokes, the forearm and wrist carrying them, a livelier idle arm)
-CORPUS_VERSION = 7
+#: a wider turn toward the listeners, stroke apexes a little further off their onsets
+CORPUS_VERSION = 6
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"
@@ -53,7 +52,7 @@ SPLIT_FILE = "train_test_split.csv"
 
 #: Settings added after corpora had been built at 1: a marker without one was built at 1.
 SCALES_ADDED_LATER = ("emotion_prosody_scale",)
-#: Settings tried and not adopted, removed (experiments/wide_speakers/): a marker that holds one was built with it
+#: Settings tried and not adopted, removed (experiments/reports/): a marker that holds one was built with it
 #: at another value than this version's fixed 1, so it is a corpus of other settings.
 SCALES_RETIRED = ("speaker_prosody_scale",)
 
@@ -70,7 +69,7 @@ class CorpusConfig:
     engines: tuple[str, ...] = ENGINES
     #: Strength of the emotions' speech prosody (1 = the factor table; see ``scale_prosody``). The
     #: default 1.5 makes the emotion audible on held-out texts (at 1, hand-made prosody features
-    #: classify it at 0.82-0.85; experiments/speech_model/README.md); corpora built before it were at 1.
+    #: classify it at 0.82-0.85; experiments/README.md); corpora built before it were at 1.
     emotion_prosody_scale: float = 1.5
 
     def validate(self) -> None:

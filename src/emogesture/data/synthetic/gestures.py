@@ -27,7 +27,7 @@ local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
 * breathing, a tremor for fear, the jaw opening with the speech energy.
 
 Measured with ``emogesture motion-stats`` against real conversational motion capture: see
-``experiments/corpus/README.md``.
+``experiments/README.md``.
 
 Mirror rule: the right side uses the left side's channels with the Y and Z rotation components
 negated (a reflection through the body's mid-plane). Lower-body joints stay at zero.
@@ -50,12 +50,9 @@ ARM_DOWN = 1.30  # rad about Z that brings the T-pose arms down beside the body 
 REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
 MAX_ADDUCTION = 0.03  # rad the hanging arm may come closer to the body than at rest
 MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
-MAX_ELBOW = 1.9  # rad: the elbow's largest bend
-MAX_ELBOW_SPEED = 7.5  # rad/s: the elbow's fastest turn
-RAISED_REACH = 2.0  # rad: the elbow's bend and the arm's rise forward together at most (the hand stays below the head)
-STROKE_WIDTH = 0.14  # s, rise half-width of a neutral stroke (return is 1.4× longer)
-STROKE_GAP = 0.4  # s, minimum spacing of neutral strokes
-P_REST = 0.12  # share of chosen stroke times left out: the hands rest or hold
+STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
+STROKE_GAP = 0.6  # s, minimum spacing of neutral strokes
+P_REST = 0.2  # share of chosen stroke times left out: the hands rest or hold
 APEX_JITTER = 0.13  # s, sd of a stroke's apex about its onset
 MAX_HOLD = 0.3  # s, longest hold at a stroke's apex
 P_TOGETHER = 0.12  # share of strokes that bring both hands together in front of the body
@@ -65,15 +62,10 @@ P_TURN = 0.5  # chance that a phrase is addressed to another listener
 ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
 STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
 MAX_STROKE = 1.0  # rad: the largest stroke
-MAX_STROKE_SPEED = 7.5  # rad/s: a stroke's amplitude over its rise's half-width at most (about 5 rad/s at its fastest)
+MAX_STROKE_SPEED = 8.0  # rad/s: a stroke's amplitude over its rise's half-width at most (about 5 rad/s at its fastest)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
 # the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
-IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.17, 0.24))
-#: each arm channel's share of the idle layer's arm amplitude (the forearm moves more than the upper arm)
-IDLE_ARM = dict(flex=1.0, abduct=1.0, elbow=7.0, wflex=3.0, wdev=1.5, twist=3.0, inward=1.0)
-IDLE_QUIET = 0.3  # share of the idle arm's movement left in pauses (the arms move more as the voice swells)
-#: each arm channel's gain in a stroke (the elbow's bend carries most of a beat)
-STROKE_GAIN = dict(flex=1.0, abduct=1.0, elbow=2.6, wflex=1.8, wdev=1.2, twist=1.8, inward=1.0)
+IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
 COLLAR, SHOULDER, ELBOW, WRIST = (13, 14), (16, 17), (18, 19), (20, 21)
 HAND = (tuple(range(25, 40)), tuple(range(40, 55)))  # the 15 finger joints of each hand
@@ -140,7 +132,6 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     level = energy / (np.percentile(energy, 95) + 1e-9)
     active = gaussian_filter1d((level > 0.15).astype(float), 3) > 0.5
     lift = gaussian_filter1d(active.astype(float), 0.45 * FPS)  # hands up while talking, down in pauses
-    loud = np.clip(gaussian_filter1d(level, 0.1 * FPS), 0.0, 1.0)  # the voice's loudness, syllable by syllable
 
     # Channels: posture per side (L, R) and body.
     post = {k: em.posture.get(k, 0.0) + sm.posture.get(k, 0.0) + jitter.posture[k] for k in POSTURE_KEYS}
@@ -160,8 +151,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
                 pitch=0.03 * lift * amp ** 0.5)  # leaning in while talking
     for side in range(2):
         a = arms[side]
-        noise = (smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
-                 * np.array([IDLE_ARM[k] for k in arm_keys]) * (IDLE_QUIET + (1.0 - IDLE_QUIET) * loud)[:, None])
+        noise = smooth_noise(rng, n, IDLE["arm"][1] * FPS, len(arm_keys)) * IDLE["arm"][0] * np.sqrt(amp)
         wrist_noise = smooth_noise(rng, n, IDLE["wrist"][1] * FPS, 3) * IDLE["wrist"][0] * np.sqrt(amp)
         noise[:, 3:6] += wrist_noise
         for i, k in enumerate(arm_keys):
@@ -211,8 +201,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
             direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
                              wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
                              inward=rng.uniform(0.0, 0.3))
-        # a large stroke takes its time: the hand stays below about 4 m/s
-        floor = a_k * max(1.0, STROKE_GAIN["elbow"] * abs(direction["elbow"])) / MAX_STROKE_SPEED
+        floor = a_k / MAX_STROKE_SPEED  # a large stroke takes its time: the hand stays below about 4 m/s
         w = slow * np.where(t < apex, max(rise, floor), max(fall, 1.4 * floor))
         bump = np.exp(-0.5 * (np.maximum(t - apex - hold, 0.0) + np.minimum(t - apex, 0.0)) ** 2 / w ** 2)
         shape = "open" if kind >= P_TOGETHER and kind < P_TOGETHER + P_REACH and rng.uniform() < 0.6 else \
@@ -223,7 +212,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
                                     + np.minimum(t - apex + 0.05, 0.0) / (1.5 * rise)) ** 2)
         for side in sides:
             for k, v in direction.items():
-                arms[side][k] += a_k * v * STROKE_GAIN[k] * bump
+                arms[side][k] += a_k * v * bump
             hands.add_shape(fingers[side], shape, shape_bump, float(np.clip(a_k / STROKE_AMPLITUDE, 0.3, 1.0)))
         body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
         body["lean"] += 0.04 * a_k * bump
@@ -234,16 +223,6 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
         strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + hold + 2 * fall),
                               round(score, 3), hand))
     return _to_poses(body, arms, fingers, root, energy, rng), strokes
-
-
-def rate_limited(x: np.ndarray, step: float) -> np.ndarray:
-    """``x [T]`` followed at most ``step`` per frame (a joint that cannot turn faster)."""
-    out = np.empty_like(x)
-    current = x[0] if len(x) else 0.0
-    for i, v in enumerate(x):
-        current += min(max(v - current, -step), step)
-        out[i] = current
-    return out
 
 
 def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dict, energy: np.ndarray,
@@ -272,27 +251,19 @@ def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dic
         # the arm at most MAX_ADDUCTION closer to the body than the rest pose, so the hand stays beside the hips
         # (and a chest bent sideways toward the arm tilts the hanging arm into the hip: the arm opens as much)
         toward = np.maximum(body["side"] if side == 1 else -body["side"], 0.0)
+        abduct = np.clip(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0) + toward, MAX_ABDUCTION)
         flex = np.clip(a["flex"], -0.3, MAX_FLEX)
-        # (and a hanging arm whose elbow bends opens a little, so the forearm passes beside the hip)
-        bent = np.clip((a["elbow"] - 0.3) / 0.9, 0.0, 1.0) * (1.0 - np.clip(flex / 0.4, 0.0, 1.0))
-        abduct = np.clip(a["abduct"], -MAX_ADDUCTION - np.minimum(body["shrug"], 0.0) + toward + 0.1 * bent,
-                         MAX_ABDUCTION)
         down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
         forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))
         # the upper arm turned about its own axis: a bent forearm swings in toward the midline (a straight
         # arm hardly moves, so the turn follows the elbow's bend)
         inward = (np.clip(a["inward"], -0.2, 1.1) * np.clip((a["elbow"] - 0.3) / 0.9, 0.0, 1.0)
-                  * np.clip((flex - 0.1) / 0.3, 0.0, 1.0))  # and the arm's reach forward, so the hand stays in front
+                  * np.clip(flex / 0.3, 0.0, 1.0))  # and the arm's reach forward, so the hand stays in front
         turn = Rotation.from_rotvec(np.stack([inward, np.zeros(n), np.zeros(n)], 1))
         poses[:, SHOULDER[side]] = (forward * down * turn).as_rotvec() * m
         collar = smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
         poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
-        # the elbow bends at most MAX_ELBOW (the hand stays off the chest), less on a raised arm (below the head)
-        elbow = rate_limited(np.clip(a["elbow"], 0.05, np.minimum(MAX_ELBOW, RAISED_REACH - np.maximum(flex, 0.0))),
-                             MAX_ELBOW_SPEED / FPS)
-        poses[:, ELBOW[side]] = np.stack([np.zeros(n), -elbow, np.zeros(n)], 1) * m
-        # within a wrist's reach: pronation and supination, deviation, flexion and extension
-        poses[:, WRIST[side]] = np.stack([np.clip(a["twist"], -1.5, 1.5), np.clip(0.5 * a["wdev"], -0.5, 0.5),
-                                          np.clip(-0.6 * a["wflex"], -1.2, 1.2)], 1) * m
+        poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
+        poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
         poses[:, list(HAND[side])] = hands.finger_poses(fingers[side], m)
     return poses.astype(np.float32)
