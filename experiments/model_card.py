@@ -295,10 +295,10 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     ravdess_text = ravdess_section(report / "ravdess_test.json")
-    ravdess_stage = ("; then 700 more with the same settings and one window of RAVDESS's train actors (their clips "
-                     "augmented alike) in each batch's quadruples" if ravdess_text else "")
-    trained_on = ("the project's **synthetic corpus** and, for the speech model's emotion path, **RAVDESS**'s train "
-                  "actors (below)" if ravdess_text else "the project's **synthetic corpus**")
+    ravdess_stage = ""
+    trained_on = ("the project's **synthetic corpus** and, for the read-out that hears emotion in a real voice (the "
+                  "encoder of Whisper tiny.en, MIT, read by a logistic regression), **RAVDESS**'s train actors (below)"
+                  if ravdess_text else "the project's **synthetic corpus**")
     text = f"""# Model card: the bundled emogesture model
 
 The model `emogesture generate` uses when no `--model` is given: the `tiny` speech disentanglement
