@@ -44,7 +44,7 @@ from emogesture.errors import ConfigError, EmogestureError
 #: 5: hands that curl and take shapes, a body that turns toward listeners, forearms toward the midline and
 #: hands together, fewer strokes with jittered apexes, holds and rests; 6: arms that hang nearer the body,
 #: a wider turn toward the listeners, stroke apexes a little further off their onsets
-CORPUS_VERSION = 8
+CORPUS_VERSION = 6
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"
