@@ -80,6 +80,7 @@ def main() -> None:
             r = whole.run(preset, lengths, "auto", args.device, repeats=5 if preset == "tiny" else 1)
             if preset == "tiny":  # the paper preset's long clips take minutes each; its start-up hides nothing
                 r["in_process"] = whole.in_process(preset, tuple(lengths[-2:]), "auto", args.device)
+                r["real_speech"] = whole.real_speech(preset, "auto", args.device, repeats=1 if args.quick else 2)
             result["whole"].append(r)
             md += [whole.table(r)]
             print(whole.table(r), flush=True)

@@ -13,7 +13,7 @@ The linearity is also measured without the start-up (:func:`in_process`): a 1.9-
 by ±0.1 s hides the 60-s clip's 0.3 s of work, so the whole-process ratio is mostly that noise for tiny.
 
 Usage: python bench/whole.py [--preset tiny|paper] [--lengths 10,60,600] [--precision auto|fp32|bf16]
-                             [--repeats N] [--in-process] [--json OUT]
+                             [--repeats N] [--in-process] [--real-speech] [--json OUT]
 """
 
 from __future__ import annotations
@@ -134,6 +134,34 @@ def in_process(preset: str, lengths: tuple[float, float] = (60.0, 600.0), precis
             "ratio": round(best[-1] / best[0], 3), "repeats": repeats}
 
 
+def real_speech(preset: str = "tiny", precision: str = "auto", device: str = "cpu", repeats: int = 2) -> dict:
+    """``GesturePipeline.generate`` in one process on each real recording of
+    :mod:`emogesture.data.real_speech` (voices the perception does not always trust, so the front end trained on
+    real speech hears some of their windows): audio seconds, generation seconds (best of ``repeats``) and the
+    front end's share (its ``voice features`` stage, the model loaded on first use and counted in the first,
+    untimed run), summed over the recordings; their real-time factor."""
+    from emogesture.data.real_speech import RECORDINGS, load_real_recording
+    from emogesture.pipeline.generate import GesturePipeline
+    from emogesture.runtime import StageTimes
+
+    pipe = GesturePipeline.from_run(fixtures.gesture_run(fixtures.scratch_folder(), preset), precision=precision,
+                                    device=device)
+    audio = generation = heard = 0.0
+    for recording in RECORDINGS:
+        wave = load_real_recording(recording)
+        pipe.generate(wave, seed=0)
+        runs = []
+        for _ in range(repeats):
+            times = StageTimes()
+            t0 = time.perf_counter()
+            pipe.generate(wave, seed=0, times=times)
+            runs.append((time.perf_counter() - t0, times.get("voice features", 0.0)))
+        wall, front = min(runs)
+        audio, generation, heard = audio + len(wave) / 16000, generation + wall, heard + front
+    return {"recordings": [r.name for r in RECORDINGS], "audio_s": round(audio, 1), "generation_s": round(generation, 2),
+            "front_end_s": round(heard, 2), "rtf": round(generation / audio, 4), "repeats": repeats}
+
+
 def table(result: dict) -> str:
     lines = [f"**{result['preset']}** (precision {result['precision']}; whole process, npz only; best of "
              f"{result.get('repeats', 1)} after an untimed run)\n",
@@ -149,6 +177,11 @@ def table(result: dict) -> str:
         lines += ["", f"in one process (no start-up; best of {r['repeats']}, interleaved): "
                   f"{' / '.join(f'{x} ms' for x in r['ms_per_audio_second'])} per audio second at "
                   f"{' / '.join(f'{s:g} s' for s in r['lengths_s'])} (ratio {r['ratio']})"]
+    if "real_speech" in result:
+        r = result["real_speech"]
+        lines += ["", f"real speech ({', '.join(r['recordings'])}; {r['audio_s']:g} s, in one process, best of "
+                  f"{r['repeats']}): {r['generation_s']} s, RTF {r['rtf']}, of which the front end trained on real "
+                  f"speech {r['front_end_s']} s"]
     return "\n".join(lines) + "\n"
 
 
@@ -161,6 +194,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2, help="runs per length and setting, the best kept (default 2)")
     ap.add_argument("--in-process", action="store_true",
                     help="also measure the linearity in one process (the two longest lengths)")
+    ap.add_argument("--real-speech", action="store_true",
+                    help="also generate for the packaged real recordings in one process (the front end's share)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     lengths = [float(x) for x in args.lengths.split(",")]
@@ -168,6 +203,8 @@ def main() -> None:
               **run(args.preset, lengths, args.precision, args.device, args.repeats)}
     if args.in_process:
         result["in_process"] = in_process(args.preset, tuple(lengths[-2:]), args.precision, args.device)
+    if args.real_speech:
+        result["real_speech"] = real_speech(args.preset, args.precision, args.device, args.repeats)
     print(table(result))
     machine.write_json(args.json, result)
 

@@ -295,7 +295,6 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     seams_text = seams_paragraph(gesture["checks"])
     level_text = level_paragraph(shift["rows"])
     ravdess_text = ravdess_section(report / "ravdess_test.json")
-    ravdess_stage = ""
     trained_on = ("the project's **synthetic corpus** and, for the read-out that hears emotion in a real voice (the "
                   "encoder of Whisper tiny.en, MIT, read by a logistic regression), **RAVDESS**'s train actors (below)"
                   if ravdess_text else "the project's **synthetic corpus**")
@@ -319,7 +318,7 @@ Trained on {trained_on} (`emogesture corpus --speakers 30`, version {corpus_vers
   (formants kept) in half of the augmented windows and more level changes, its encoders hearing the
   spectrum up to 4 kHz only (`--set model.heard_bins=96`: real recordings end anywhere from 4 kHz up,
   the synthetic voices never do), **train split only**; each stage's augmented windows made once before
-  it, 16 variants of each window (`--set wave_variants=16`){ravdess_stage};
+  it, 16 variants of each window (`--set wave_variants=16`);
 - extractor M: 600 steps, train split;
 - gesture model: joint training, {gesture_steps} steps (450 prior-only first), train split; its residual noise
   and the speech model's emotion perception are calibrated on the **val** split, which no model

@@ -6,11 +6,11 @@
 # options, for the experiments that train one stage with one of them changed (the recipe test checks they
 # agree with configs/bundled.yaml).
 
-# the second speech stage's harder conditions and learning rate (the RAVDESS stage trains on with them)
+# the second speech stage's harder conditions and learning rate
 SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semitones=6 --set wave.loudness=0.6
              --set lr=5e-4 --set lr_decay_start=100)
 # the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
-# the perception's calibration gives each emotion a mean of theirs too (4.) when no labelled speech is given
+# the perception's calibration gives each emotion a mean of theirs too (4.)
 REAL_VOICES="fr_june, it_carlo, ru_ivr"
 # the recipe's perception calibration (4.): those voices' means, and each emotion's mean of the train takes heard
 # through a telephone band for the read-out (telephone_means.sh)
@@ -91,15 +91,6 @@ ravdess_manifest() {  # OUT : the labelled-speech manifest of $RAVDESS, unless O
 
 ravdess_scoring_manifest() {  # OUT : the manifest the val and test actors are scored on (calm as neutral)
     [ -f "$1" ] || $EG labelled-speech ravdess "$RAVDESS" --out "$1" "${RAVDESS_SPLIT[@]}" --calm neutral
-}
-
-ravdess_stage() {  # OUT FROM CACHE MANIFEST TIMES : 700 speech steps on from FROM with the second stage's
-    # settings and one window of the manifest's train actors in each quadruple, into OUT unless it is there
-    local out=$1 from=$2 cache=$3 manifest=$4 times=$5
-    grep -qs '"step": 700' "$out/model.json" || timed "$times" speech_ravdess $EG train speech --data "$cache" \
-        --init-from "$from" --out "$out" --losses adversarial --steps 700 --checkpoint-every 100 \
-        "${SPEECH_HARD[@]}" "${SPEECH_PITCH[@]}" "${SPEECH_BAND[@]}" "${SPEECH_VARIANTS[@]}" \
-        --set real_labelled="$manifest" --quiet
 }
 
 train_bundle() {  # RUN CACHE : the bundled model's recipe (configs/bundled.yaml) trained, calibrated and bundled

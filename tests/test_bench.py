@@ -31,7 +31,8 @@ def test_whole_process_benchmark_runs_and_leaves_no_scratch_folder(tmp_path):
     env = {**os.environ, "TMPDIR": str(tmp_path), "OMP_NUM_THREADS": "1"}
     code = ("import sys, json; sys.path.insert(0, sys.argv[1]); import whole; "
             "r = whole.run('tiny', [1.0, 2.0], repeats=1); r['in_process'] = whole.in_process('tiny', (1.0, 2.0), "
-            "repeats=1); print(json.dumps(r)); print(whole.table(r))")
+            "repeats=1); r['real_speech'] = whole.real_speech('tiny', repeats=1); print(json.dumps(r)); "
+            "print(whole.table(r))")
     out = subprocess.run([sys.executable, "-c", code, str(BENCH)], env=env, capture_output=True, text=True,
                          check=True).stdout
     result = json.loads(next(line for line in out.splitlines() if line.startswith("{")))
@@ -41,6 +42,8 @@ def test_whole_process_benchmark_runs_and_leaves_no_scratch_folder(tmp_path):
     inner = result["in_process"]
     assert inner["lengths_s"] == [1.0, 2.0] and all(x > 0 for x in inner["ms_per_audio_second"]) and inner["ratio"] > 0
     assert "in one process (no start-up; best of 1, interleaved)" in out
+    real = result["real_speech"]
+    assert real["audio_s"] > 60 and 0 < real["front_end_s"] < real["generation_s"] and "real speech (" in out
     assert not list(tmp_path.glob("emogesture-bench-*"))
 
 

@@ -38,7 +38,6 @@ DOCUMENTED = {
     "speech.model.encoder.dropout": "a regularisation a researcher sets for the paper preset on BEAT2",
     "speech.model.emotion_speaker_context": "documented with the measurement that it helps (docs/presets.md)",
     "speech.wave.codec": "a recording condition of the augmentation a user can turn on",
-    "speech.real_labelled": "emotion-labelled real speech a user holds (docs/training.md)",
     "speech.num_workers": "data loading workers",
     "gesture.num_workers": "data loading workers",
     "extractor.num_workers": "data loading workers",
@@ -60,7 +59,7 @@ RETIRED = ["model.vae.frames_per_token", "model.vae.latent_tokens", "model.vae.d
            "model.denoiser.timing_tokens", "losses.vspeed", "losses.vaccel", "losses.align_speed",
            "losses.align_accel", "losses.wrist_features", "losses.finger_features", "real_neutral",
            "real_neutral_weight", "real_neutral_pull", "real_emotion_share", "emotion_scramble",
-           "emotion_scramble_share",
+           "emotion_scramble_share", "real_labelled", "real_labelled_weight",
            "speaker_prosody_scale"]
 
 

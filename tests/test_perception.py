@@ -330,28 +330,6 @@ def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():
     assert perceive(windows(other, style), list(range(len(other))), plain, "real.wav").real_voices is None
 
 
-def test_labelled_real_speakers_get_voice_means_and_are_trusted_while_the_typical_speaker_stays_the_corpus():
-    train, labels = clusters(60, 0)
-    held, _ = clusters(20, 1)
-    offset = np.random.default_rng(7).normal(0, 4, 48)  # what sets real voices apart
-    real, real_labels = clusters(20, 2, shift=offset)
-    real_speakers = np.arange(len(real_labels)) % 3  # three real speakers
-    held_real, held_real_labels = clusters(10, 3, shift=offset)  # a real speaker never trained on
-    plain = fit_perception(windows(train), labels, labels % 2, windows(held))
-    both = fit_perception(windows(train), labels, labels % 2,
-                          windows(np.concatenate([held, held_real])), real=windows(real), real_emotions=real_labels,
-                          real_speakers=real_speakers,
-                          held_out_emotions=np.concatenate([labels[:len(held)] * 0 + np.repeat(np.arange(8), 20),
-                                                            held_real_labels]))
-    assert both.corpus_voices == 2 and len(both.voice.means) == 5
-    assert (plain.trust(held_real, held_real) == 1.0).mean() < 0.1
-    assert (both.trust(held_real, held_real) == 1.0).mean() > 0.8
-    assert (both.read(held_real, np.zeros((len(held_real), 8))).argmax(1) == held_real_labels).mean() > 0.9
-    assert both.typical_speaker() == plain.typical_speaker()  # the fallback style is a corpus speaker's
-    q = EmotionPerception.from_state(*both.to_state())
-    assert q.corpus_voices == 2 and np.array_equal(q.typical_style(), both.typical_style())
-
-
 def test_the_summary_is_one_short_line_whatever_the_names():
     """generate's line per recording stays within 160 characters with long file names, a neutral reference, a
     dozen windows and every blend; the details name the reference's full path."""

@@ -84,8 +84,8 @@ def test_the_bundle_hears_three_times_unless_told_otherwise_or_its_front_end_hea
     pipe = GesturePipeline.from_run()
     wave = _voice(14.0)
     if pipe.speech.perception is not None and pipe.speech.perception.heard is not None:
-        front = pipe.encode(wave)[0]  # the front end trained on real speech hears it: once
-        assert front.heard_features is not None and front.shifted_emotion is None
+        front = pipe.encode(wave)[0]  # the front end trained on real speech hears what it must: heard once
+        assert front.shifted_emotion is None
     hop = pipe.generation.hop_seconds
 
     def encode(settings):  # as generate hears it without the front end

@@ -74,16 +74,19 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
 
 
 def test_a_stored_config_with_a_removed_option_at_its_off_value_still_reads():
-    """Options tried and not adopted (emotion scramble, real voices taught as neutral or given emotions, the pull)
-    are gone; a run stored before, that left them off, still reads; one that used them is a one-line error."""
+    """Options tried and not adopted (emotion scramble, real voices taught as neutral or given emotions, the pull,
+    emotion-labelled real speech in the quadruples) are gone; a run stored before, that left them off, still
+    reads; one that used them is a one-line error."""
     from emogesture.config import from_dict, to_dict
     from emogesture.errors import ConfigError
     from emogesture.train.speech import SpeechTrainConfig
 
     old = {**to_dict(SpeechTrainConfig()), "emotion_scramble": 0, "emotion_scramble_share": 0.5, "real_neutral": [],
-           "real_neutral_weight": 1.0, "real_neutral_pull": 0.0, "real_emotion_share": 0.0}
+           "real_neutral_weight": 1.0, "real_neutral_pull": 0.0, "real_emotion_share": 0.0, "real_labelled": "",
+           "real_labelled_weight": 1.0}
     assert from_dict(SpeechTrainConfig, old) == SpeechTrainConfig()
-    for key, value in (("emotion_scramble", 64), ("real_neutral", ["fr_june"]), ("real_neutral_pull", 1.0)):
+    for key, value in (("emotion_scramble", 64), ("real_neutral", ["fr_june"]), ("real_neutral_pull", 1.0),
+                       ("real_labelled", "data/ravdess.csv")):
         with pytest.raises(ConfigError, match=f"{key} = .*: this option was removed"):
             from_dict(SpeechTrainConfig, {**old, key: value})
 
@@ -307,64 +310,3 @@ def test_init_from_a_trained_speech_model_starts_every_weight_there(tmp_path):
     config.model.latent_dim = 128
     with pytest.raises(ConfigError, match="another architecture.*latent_dim"):
         SpeechModule(to_dict(config))
-
-
-def _labelled_manifest(folder):
-    """Two train speakers and one val speaker, each with an 'anger' buzz and a 'sadness' hum."""
-    import soundfile as sf
-
-    t = np.arange(12 * 16000) / 16000
-    voices = {"anger": 0.2 * np.sign(np.sin(2 * np.pi * 260 * t)) * (np.sin(2 * np.pi * 5 * t) > 0),
-              "sadness": 0.2 * np.sin(2 * np.pi * 90 * t) * (np.sin(2 * np.pi * 1.5 * t) > 0)}
-    rows = ["path,emotion,speaker,split"]
-    for speaker, split in (("a", "train"), ("b", "train"), ("c", "val")):
-        for emotion, wave in voices.items():
-            sf.write(folder / f"{speaker}_{emotion}.wav", wave.astype(np.float32), 16000)
-            rows.append(f"{speaker}_{emotion}.wav,{emotion},{speaker},{split}")
-    (folder / "labels.csv").write_text("\n".join(rows) + "\n")
-    return folder / "labels.csv", {e: w.astype(np.float32) for e, w in voices.items()}
-
-
-def test_labelled_real_speech_is_learned_as_labelled(cache, tmp_path):
-    """``real_labelled``: each quadruple brings a window of the manifest's train speakers, and the emotion
-    classifier learns to hear each as its emotion."""
-    import torch
-
-    from emogesture.data.beat import EMOTIONS
-    from emogesture.pipeline.speech import SpeechLatentEncoder
-    from emogesture.train.runs import RunOptions, train_speech
-
-    manifest, voices = _labelled_manifest(tmp_path)
-    heard = {}
-    for weight in (0.0, 20.0):
-        run = tmp_path / f"w{weight:g}"
-        train_speech(cache, run, overrides=["batch_size=2", "samples_per_epoch=64", f"real_labelled={manifest}",
-                                            f"real_labelled_weight={weight}"],
-                     options=RunOptions(steps=8, checkpoint_every=100, log_every=1))
-        encoder = SpeechLatentEncoder.from_run(run)
-        right = []
-        for emotion, wave in voices.items():
-            enc, _ = encoder.encode(wave, 16000, 5.0)
-            right.append(float(torch.softmax(torch.from_numpy(enc.emotion_logits), 1)[:, EMOTIONS.index(emotion)].mean()))
-        heard[weight] = np.mean(right)
-    assert heard[20.0] > heard[0.0] + 0.2, heard
-
-
-def test_labelled_real_speech_draws_its_train_speakers_only(cache, tmp_path):
-    from emogesture.data.beat import EMOTIONS
-    from emogesture.errors import ConfigError, InputFileError
-    from emogesture.train.speech import SpeechTrainConfig, build
-
-    config = SpeechTrainConfig.preset("tiny")
-    config.real_labelled = str(tmp_path / "labels.csv")
-    with pytest.raises(InputFileError, match="labelled-speech manifest not found"):
-        build(config, cache, 0)
-    _labelled_manifest(tmp_path)
-    data, _, _ = build(config, cache, 0)
-    real = data.dataset.real
-    assert {EMOTIONS[e]: len(w) for e, w in real.by_emotion.items()} == {"anger": 2, "sadness": 2}  # a and b, not c
-    window, emotion = real.draw(np.random.default_rng(0))
-    assert window.shape == tuple(data.train.fbank.shape[1:]) and EMOTIONS[emotion] in ("anger", "sadness")
-    config.real_labelled_weight = -1.0
-    with pytest.raises(ConfigError, match="real_labelled_weight -1.0: must be >= 0"):
-        build(config, cache, 0)

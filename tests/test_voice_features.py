@@ -74,6 +74,15 @@ def test_auto_blends_toward_the_emotion_heard():
     front = heard_by_front_end(enc, perception)
     assert front is not None and np.allclose(heard_probabilities(enc, perception), front)
     assert heard_by_front_end(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception) is None
+    # a window the front end did not hear (the encoder hears only the untrusted ones) is read by the latents
+    partly = x[:3].copy()
+    partly[0] = np.nan
+    enc = EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4)), heard_features=partly)
+    alone = heard_probabilities(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception)
+    probs = heard_probabilities(enc, perception)
+    assert np.allclose(probs[0], alone[0]) and np.allclose(probs[1:], front[1:])
+    moved = auto_emotion(far, far, perception, heard_by_front_end(enc, perception))
+    assert np.isfinite(moved).all() and np.allclose(moved[0], perception.neutral(), atol=1e-4)
 
 
 def test_front_end_features_of_speech():
@@ -90,3 +99,18 @@ def test_front_end_features_of_speech():
     assert not np.allclose(x[0], x[1])  # other speech, other features
     quiet = hearer(np.zeros(16000 * 10, np.float32), [0.0])
     assert np.abs(quiet - x[:1]).mean() > 0.05  # silence is not speech
+
+
+def test_the_front_end_hears_a_window_every_20_s_and_interpolates_between():
+    from emogesture.pipeline.voice_features import hearing_plan
+
+    heard, weights = hearing_plan(np.ones(9, bool), 7.0)  # windows every 7 s: one heard in three, and the last
+    assert heard.tolist() == [0, 3, 6, 8]
+    np.testing.assert_allclose(weights.sum(1), 1.0)
+    np.testing.assert_allclose(weights[1], [2 / 3, 1 / 3, 0, 0])
+    np.testing.assert_allclose(weights[7], [0, 0, 0.5, 0.5])
+    need = np.array([False, True, False, False, False, False, True, False])  # far apart: both heard
+    heard, weights = hearing_plan(need, 7.0)
+    assert heard.tolist() == [1, 6] and not weights[~need].any()
+    assert hearing_plan(np.zeros(3, bool), 7.0)[0].size == 0
+    assert hearing_plan(np.ones(4, bool), 20.0)[0].tolist() == [0, 1, 2, 3]  # windows 20 s apart: all heard

@@ -181,32 +181,3 @@ def test_recording_changes_do_what_they_say():
     assert rms(out["reverberant room, RT60 0.5 s"]) == pytest.approx(rms(x), rel=0.3)
     assert 5 < 10 * np.log10(rms(x) ** 2 / rms(out["white noise, 10 dB SNR"] - x) ** 2) < 15
 
-
-def test_labelled_real_windows_are_seeded_cache_like_windows(tmp_path):
-    """Windows of labelled real speech for training come out like the cache's (shape, statistics), with their
-    emotion, drawn from the item's own generator, and only where asked for: the quadruples stay the same."""
-    from emogesture.data.beat import EMOTIONS
-    from emogesture.data.cache import open_cache
-    from emogesture.data.datasets import LabelledRealWindows, SpeechQuadrupleDataset, WaveWindowAugmenter
-    from emogesture.data.prepare import prepare
-
-    from helpers import make_root
-
-    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
-    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
-    cache = open_cache(tmp_path / "cache")
-    train = cache.split("train")
-    augmenter = WaveWindowAugmenter(cache, train, WaveAugmentConfig(noise=1.0))
-    voices = [np.tile(_voice(2.0, 120.0), 8).astype(np.float32), np.tile(_voice(2.0, 210.0), 8).astype(np.float32)]
-    real = LabelledRealWindows(augmenter, [(voices[0], "anger"), (voices[1], "sadness"),
-                                           (np.zeros(100, np.float32), "neutral")], share=0.5)
-    assert real.emotions == [EMOTIONS.index("anger"), EMOTIONS.index("sadness")]  # shorter than a window: left out
-    data = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=augmenter, augment_share=0.5, real=real)
-    a, b, c = data[0], data[0], data[1]
-    assert a["real"].shape == train.fbank.shape[1:] and int(a["real_emotion"]) in real.emotions
-    assert torch.equal(a["real"], b["real"]) and not torch.equal(a["real"], c["real"])
-    assert abs(float(a["real"].mean())) < 1.5  # normalised with the cache's statistics
-    plain = SpeechQuadrupleDataset(train, [1, 2], 4, seed=3, augmenter=augmenter, augment_share=0.5)[0]
-    assert torch.equal(plain["inputs"], a["inputs"]) and "real" not in plain
-    with pytest.raises(ValueError, match="shorter than one window"):
-        LabelledRealWindows(augmenter, [(np.zeros(100, np.float32), "anger")], share=0.0)

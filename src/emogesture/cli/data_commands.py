@@ -51,8 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Find the emotion-labelled recordings under ROOT in a known layout (ravdess: "
         "03-01-EE-II-SS-RR-AA.wav; crema-d: AAAA_SSS_EEE_LL.wav; folders: SPEAKER/EMOTION/*.wav) and write "
         "a manifest (CSV: path,emotion,speaker,split) with whole speakers held out for val and test. "
-        "Train on it with `train speech --set real_labelled=MANIFEST`; score a model on its held-out "
-        "speakers with `evaluate real --labelled MANIFEST`.",
+        "Score a model on its held-out speakers with `evaluate real --labelled MANIFEST`.",
     )
     p.add_argument("layout", choices=["ravdess", "crema-d", "folders"], help="how the recordings are named")
     p.add_argument("root", type=Path, help="folder holding the recordings (searched recursively)")

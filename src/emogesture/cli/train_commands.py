@@ -61,8 +61,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--data", required=True, type=Path, help="windows cache from `emogesture prepare`")
     p.add_argument("--out", required=True, type=Path, help="run folder (re-running the same command resumes)")
     p.add_argument("--labelled-root", type=Path, metavar="RAVDESS",
-                   help="RAVDESS's audio_speech_actors_01-24 folder: its stages and calibration run too "
-                        "(CC BY-NC-SA 4.0: the weights are then for non-commercial use)")
+                   help="RAVDESS's audio_speech_actors_01-24 folder: with the recipe's perception.front_end, "
+                        "its train actors teach the front end's read-out beside the corpus (CC BY-NC-SA 4.0: the "
+                        "weights are then for non-commercial use)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run_train_bundle)
 
@@ -82,10 +83,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--real-voices", type=_names, default=[], metavar="NAME,...",
                    help="real training voices (e.g. fr_june,it_carlo,ru_ivr) given each of the synthetic corpus's "
                         "emotions, each emotion of theirs read by its own mean beside the corpus's")
-    p.add_argument("--labelled", type=Path, metavar="MANIFEST",
-                   help="emotion-labelled real speech (a labelled-speech manifest): each emotion also read by its "
-                        "mean over the train speakers, their voices known, and the trust thresholds measured on "
-                        "the held-out split's real speakers too")
     p.add_argument("--telephone-means", action="store_true",
                    help="also read each emotion by its mean of the train takes heard through a telephone band "
                         "(the read-out only; the trust and the latents animated are unchanged)")
@@ -196,8 +193,7 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     from emogesture.train.perception import calibrate_perception_run
 
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite,
-                                 real_voices=args.real_voices, telephone_means=args.telephone_means,
-                                 labelled=args.labelled)
+                                 real_voices=args.real_voices, telephone_means=args.telephone_means)
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
           f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}"

@@ -10,7 +10,6 @@ from emogesture.audio import FbankConfig, fbank_window, kaldi_fbank, load_audio,
 from emogesture.audio.wave_augment import WaveAugmentConfig, augment_waveform
 from emogesture.config import from_dict
 from emogesture.data.cache import SplitWindows, WindowsCache
-from emogesture.data.beat import EMOTIONS
 from emogesture.data.quadruples import QuadrupleIndex
 
 
@@ -130,37 +129,6 @@ class AugmentedWindowBank:
         return np.asarray(self.fbank[j, int(rng.integers(self.variants))], np.float32)
 
 
-class LabelledRealWindows:
-    """Windows of emotion-labelled real speech (:mod:`emogesture.data.labelled_speech`), made like the
-    cache's (:class:`WaveWindowAugmenter`'s filterbank and statistics): each draw takes an emotion (uniform
-    over those present), a recording of it (one speaker's clips of that emotion, joined; uniform) and a start
-    at random, and hears the window through augmented conditions with probability ``share``."""
-
-    def __init__(self, augmenter: WaveWindowAugmenter, recordings: list[tuple[np.ndarray, str]],
-                 share: float) -> None:
-        n = augmenter.window_samples
-        self.augmenter, self.share = augmenter, share
-        self.by_emotion: dict[int, list[np.ndarray]] = {}
-        for wave, emotion in recordings:
-            if len(wave) > n:
-                self.by_emotion.setdefault(EMOTIONS.index(emotion), []).append(wave)
-        if not self.by_emotion:
-            raise ValueError("every labelled recording is shorter than one window")
-        self.emotions = sorted(self.by_emotion)
-
-    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, int]:
-        """One window's fbank ``[frames, n_mels]`` float32 and its emotion (an index into ``EMOTIONS``)."""
-        n = self.augmenter.window_samples
-        emotion = self.emotions[int(rng.integers(len(self.emotions)))]
-        waves = self.by_emotion[emotion]
-        wave = waves[int(rng.integers(len(waves)))]
-        start = int(rng.integers(len(wave) - n))
-        x = wave[start: start + n]
-        if rng.random() < self.share:
-            x, _ = augment_waveform(x, rng, self.augmenter.config)
-        return self.augmenter.window_fbank(x), emotion
-
-
 class SpeechQuadrupleDataset(Dataset):
     """Seeded quadruples ``(c1 s1, c2 s1, c1 s2, c2 s2)`` of fbank windows (docs/design.md, 'Speech
     disentanglement model').
@@ -171,17 +139,15 @@ class SpeechQuadrupleDataset(Dataset):
     ``augmenter`` (drawn afresh, or one of an :class:`AugmentedWindowBank`'s variants), each window is also
     heard through augmented conditions with probability ``augment_share`` (the same generator decides):
     ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
-    clean windows (the reconstruction target). With ``real`` (labelled real speech), also one window of a real
-    voice, ``real [1024, n_mels]``, and its emotion ``real_emotion`` (int; drawn after the quadruple, from the same
-    generator).
+    clean windows (the reconstruction target).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
-                 augmenter: WaveWindowAugmenter | AugmentedWindowBank | None = None, augment_share: float = 0.0,
-                 real: LabelledRealWindows | None = None) -> None:
+                 augmenter: WaveWindowAugmenter | AugmentedWindowBank | None = None,
+                 augment_share: float = 0.0) -> None:
         if not 0.0 <= augment_share <= 1.0:
             raise ValueError(f"augment_share {augment_share} is not in [0, 1]")
-        self.augmenter, self.augment_share, self.real = augmenter, augment_share, real
+        self.augmenter, self.augment_share = augmenter, augment_share
         self.windows = windows
         self.index = QuadrupleIndex(windows)
         self.speaker_class = {s: i for i, s in enumerate(speakers)}
@@ -207,9 +173,6 @@ class SpeechQuadrupleDataset(Dataset):
                 if rng.random() < self.augment_share:
                     heard[k] = self.augmenter(j, rng)
             item["inputs"] = torch.from_numpy(heard)
-        if self.real is not None:
-            real, emotion = self.real.draw(rng)
-            item["real"], item["real_emotion"] = torch.from_numpy(real), torch.tensor(emotion)
         return item
 
 

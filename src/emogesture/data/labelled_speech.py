@@ -5,8 +5,9 @@ emotion.
 Nothing of the kind ships with the tool or can be had from a package, and the bundled model has heard only
 synthetic voices speak with emotion. Real acted emotion is what teaches a perception where a real person's
 neutral lies (docs/training.md, 'Emotion-labelled real speech'). A researcher or studio that holds such recordings (CREMA-D, RAVDESS,
-their own) can give them to the speech model's training (``train speech --set real_labelled=MANIFEST``) and
-score a model on the speakers it never heard (``evaluate real --labelled MANIFEST``).
+their own) can score a model on the speakers it never heard (``evaluate real --labelled MANIFEST``); RAVDESS's
+train actors teach the read-out of the front end trained on real speech (``emogesture train bundle
+--labelled-root``, :mod:`emogesture.train.heard_readout`).
 
 The manifest is a CSV file with the header ``path,emotion,speaker,split``: ``path`` relative to the
 manifest's own folder (or absolute), ``emotion`` one of the seven emotions and neutral (or a common

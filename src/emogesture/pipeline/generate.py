@@ -128,17 +128,18 @@ class GesturePipeline:
 
     def encode(self, waveform: np.ndarray, progress: Callable[[int], None] | None = None, times: StageTimes | None = None,
                parts: tuple[str, ...] = LATENT_PARTS, generation: GenerationConfig | None = None,
-               perceived: bool = True) -> tuple[EncodedWindows, list[float]]:
+               perceived: bool = True, front_end: bool | None = None) -> tuple[EncodedWindows, list[float]]:
         """A 16 kHz waveform -> speech latents of its 10-s windows every ``hop_seconds`` of the settings,
         and their starts (s); ``parts``: the latents wanted (default all three; an edit
         source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``
         and ``perception_semitones``); ``perceived`` False: only the latents are wanted, not what
-        :meth:`perceive` reads, so the recording is heard once."""
+        :meth:`perceive` reads, so the recording is heard once; ``front_end``: whether the front end trained on
+        real speech hears the windows the perception does not trust (None: when ``perceived``)."""
         settings = generation or self.generation
         return self.speech.encode(waveform, TARGET_SAMPLE_RATE, settings.hop_seconds, progress, times, parts,
                                   noise_suppression=settings.noise_suppression,
                                   perception_semitones=settings.perception_semitones if perceived else 0.0,
-                                  front_end=perceived)
+                                  front_end=perceived if front_end is None else front_end)
 
     def edit_source_parts(self, edit: str) -> tuple[str, ...]:
         """The latents a second recording must give for ``edit`` (``emotion`` or ``style``): its emotion
@@ -263,7 +264,9 @@ class GesturePipeline:
         """
         settings = self.settings(generation)
         if encoded is None:
-            encoded = self.encode(waveform, times=times, generation=settings, perceived=False)
+            # heard once; by the front end too where ``auto`` blends toward what it hears, as ``generate`` does
+            encoded = self.encode(waveform, times=times, generation=settings, perceived=False,
+                                  front_end=emotion_mode == "auto")
         enc, starts_s = encoded
         conds = self.conditions(enc, edit, emotion_mode, starts_s, len(waveform) / TARGET_SAMPLE_RATE)
         starts = [int(round(s * self.fps)) for s in starts_s]

@@ -62,6 +62,7 @@ def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | Non
     if front is not None:  # the front end decides where the voice is unlike the training voices
         animated = enc if relative is None else relative
         known = perception.trust(animated.emotion, animated.style) >= 1.0
+        known |= ~np.isfinite(front).all(1)  # (windows the front end did not hear: the encoder trusted them)
         probs = np.where(known[:, None], probs, front)
     return probs
 
@@ -97,13 +98,17 @@ def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerc
     if perception is None:
         return emotion
     w = perception.trust(emotion, style)[:, None]
-    target = perception.neutral()[None] if heard is None else perception.heard_latents(heard)
+    target = np.broadcast_to(perception.neutral()[None], emotion.shape)
+    if heard is not None:  # windows the front end did not hear (it hears the untrusted ones) keep the neutral
+        heard_at = np.isfinite(heard).all(1)
+        target = np.where(heard_at[:, None], perception.heard_latents(np.nan_to_num(heard)), target)
     return (w * perception.in_corpus_frame(emotion) + (1.0 - w) * target).astype(np.float32)
 
 
 def heard_by_front_end(enc: EncodedWindows, perception: EmotionPerception | None) -> np.ndarray | None:
     """``[W, 8]``: what the front end trained on real speech hears in ``enc``'s windows, where it heard them
-    (``EncodedWindows.heard_features``) and the perception reads it; else None."""
+    (``EncodedWindows.heard_features``) and the perception reads it (NaN rows: windows it did not hear, those
+    the perception trusts fully); else None."""
     if perception is None or perception.heard is None or enc.heard_features is None:
         return None
     return np.exp(perception.heard.log_probs(enc.heard_features))

@@ -23,7 +23,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
-from scipy.ndimage import gaussian_filter1d
 from torch import Generator
 
 from emogesture.diffusion.residual import add_residual_noise
@@ -87,7 +86,7 @@ def settle_quiet_windows(features: np.ndarray, weights: np.ndarray, fps: float) 
     if not quiet.any():
         return features
     out = features.copy()
-    smooth = gaussian_filter1d(features[quiet].astype(np.float64), SETTLE_SIGMA_SECONDS * fps, axis=1, mode="nearest")
+    smooth = gaussian_smooth(torch.from_numpy(features[quiet].astype(np.float64)), SETTLE_SIGMA_SECONDS * fps).numpy()
     w = np.asarray(weights, np.float64)[quiet][:, None, None]
     out[quiet] = (w * features[quiet] + (1.0 - w) * smooth).astype(features.dtype)
     return out

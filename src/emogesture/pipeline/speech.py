@@ -161,8 +161,9 @@ class SpeechLatentEncoder:
         formants) moved that many semitones up and down with the tempo kept, into
         ``shifted_emotion``/``shifted_logits`` (what :func:`emogesture.pipeline.perception.perceive` averages);
         the latents themselves are the recording's own. ``front_end``: where the perception has a read-out of
-        the front end trained on real speech and its packages are installed, the windows are heard by it too
-        (``heard_features``)."""
+        the front end trained on real speech and its packages are installed, the windows it does not trust
+        fully are heard by it too (``heard_features``; NaN rows for the windows it trusts; one every 20 s
+        heard, those between interpolated: :func:`~emogesture.pipeline.voice_features.hearing_plan`)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         if perception_semitones < 0:
@@ -179,15 +180,25 @@ class SpeechLatentEncoder:
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
-        if front_end and self.perception is not None and self.perception.heard is not None:
-            from emogesture.pipeline.voice_features import whisper_features
+        from emogesture.pipeline.voice_features import FEATURES, front_end_installed, hearing_plan, whisper_features
 
-            hearer = whisper_features()
+        front_end = (front_end and self.perception is not None and self.perception.heard is not None
+                     and front_end_installed())
+        if front_end:
+
+            # only the windows the perception does not trust fully: it reads the rest
+            need = np.ones(len(starts), bool)
+            if "emotion" in parts and "style" in parts:
+                need = self.perception.trust(enc.emotion, enc.style) < 1.0
+            heard, weights = hearing_plan(need, hop_seconds)
+            hearer = whisper_features() if len(heard) else None  # (loaded only when a window needs it)
             if hearer is not None:
+                enc.heard_features = np.full((len(starts), FEATURES), np.nan, np.float32)
                 with maybe_stage(times, "voice features"):
-                    enc.heard_features = hearer(waveform, starts)
+                    features = hearer(waveform, [starts[i] for i in heard])
+                enc.heard_features[need] = (weights[need] @ features).astype(np.float32)
         # the pitch-moved hearings serve the latents' own read-out, which the front end's replaces
-        if perception_semitones > 0 and "emotion" in parts and enc.heard_features is None:
+        if perception_semitones > 0 and "emotion" in parts and not front_end:
             from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up
 
             shifted = []

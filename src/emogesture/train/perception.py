@@ -16,7 +16,6 @@ from emogesture.audio.wave_augment import telephone
 from emogesture.checkpoints import check_model_output, load_model, save_model, stored_weights_dtype
 from emogesture.provenance import refuse_trained_split, trained_splits
 from emogesture.data.cache import open_cache
-from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.data.real_speech import TRAINING_VOICES, training_voice_emotions
 from emogesture.data.synthetic.corpus import corpus_emotion_prosody_scale
 from emogesture.errors import EmogestureError
@@ -32,8 +31,8 @@ REAL_STRETCHES = 10  # per real voice, when the perception learns real voices' e
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
                    quantile: float = TRUST_QUANTILE, held_out_emotions: np.ndarray | None = None,
                    real: EncodedWindows | None = None, real_emotions: np.ndarray | None = None,
-                   band: EncodedWindows | None = None, band_emotions: np.ndarray | None = None,
-                   real_speakers: np.ndarray | None = None) -> EmotionPerception:
+                   band: EncodedWindows | None = None,
+                   band_emotions: np.ndarray | None = None) -> EmotionPerception:
     """Emotion means (by ``emotions`` ``[N]``, indices into ``EMOTIONS``) and speaker means (by
     ``speakers`` ``[N]``) with their within-class spread from training windows; each threshold is the
     ``quantile`` of the held-out windows' distances; with the held-out windows' emotions ``[M]``, the
@@ -41,9 +40,7 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
     windows of real voices given the corpus's emotions (``real_emotions`` ``[R]``), each of their emotions
     gets a second mean beside the corpus's (the spread stays the training windows'). With ``band`` windows
     (training speech heard through a telephone band, emotions ``band_emotions`` ``[B]``), each of their
-    emotions gets a mean that only the read-out uses (:meth:`EmotionPerception.read_range`). With the speakers
-    of the ``real`` windows (``real_speakers`` ``[R]``: speech labelled with real emotions), each also gets a
-    voice mean after the corpus's speakers' (:attr:`EmotionPerception.corpus_voices` counts those)."""
+    emotions gets a mean that only the read-out uses (:meth:`EmotionPerception.read_range`)."""
     emotions, speakers = np.asarray(emotions), np.asarray(speakers)
     present = sorted(set(emotions.tolist()))
     if EMOTIONS.index("neutral") not in present:
@@ -55,10 +52,6 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
         emotion.means = np.concatenate([emotion.means, real_means])
         labels += [EMOTIONS[k] for k in heard]
     voice = LatentRange.fit(train.style, speakers)
-    corpus_voices = None
-    if real_speakers is not None:
-        corpus_voices = len(voice.means)
-        voice.means = np.concatenate([voice.means, class_means(np.asarray(real.style, np.float64), real_speakers)[1]])
     d_emotion, d_voice = emotion.nearest(held_out.emotion), voice.nearest(held_out.style)
     emotion.threshold = float(np.quantile(d_emotion, quantile))
     voice.threshold = float(np.quantile(d_voice, quantile))
@@ -66,7 +59,7 @@ def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.nda
             "held_out_distance_median": {"emotion": float(np.median(d_emotion)), "voice": float(np.median(d_voice))}}
     if real is not None:
         info["real_windows"] = int(len(real_emotions))
-    perception = EmotionPerception(labels, emotion, voice, info, corpus_voices=corpus_voices)
+    perception = EmotionPerception(labels, emotion, voice, info)
     if band is not None:
         heard, perception.band_means = class_means(np.asarray(band.emotion, np.float64), band_emotions)
         perception.band_labels = [EMOTIONS[k] for k in heard]
@@ -102,20 +95,15 @@ def fit_temperature(perception: EmotionPerception, emotion: np.ndarray, logits: 
 def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike[str], out: str | PathLike[str],
                              split: str = "val", quantile: float = TRUST_QUANTILE, overwrite: bool = False,
                              real_voices: list[str] | tuple[str, ...] = (),
-                             real_stretches: int = REAL_STRETCHES, telephone_means: bool = False,
-                             labelled: str | PathLike[str] | None = None) -> EmotionPerception:
+                             real_stretches: int = REAL_STRETCHES,
+                             telephone_means: bool = False) -> EmotionPerception:
     """Write a copy of the speech model of ``run`` to ``out`` with its emotion perception: means and
     spread from the cache's ``train`` windows, the threshold from ``split`` (which the model must not
     have trained on; its run records the training splits). With ``real_voices`` (names of
     :data:`emogesture.data.real_speech.TRAINING_VOICES`), also means of those real voices given each of the
     synthetic corpus's emotions (``real_stretches`` 10-s stretches of each; module docstring). With
     ``telephone_means``, also each emotion's mean of the ``train`` takes heard through a telephone band, for the
-    read-out only (:func:`telephone_band_latents`). With ``labelled`` (a labelled-speech manifest,
-    :mod:`emogesture.data.labelled_speech`), its train speakers' windows give each emotion a second mean and
-    each speaker a voice mean, and its ``split`` speakers' windows join the held-out windows the thresholds and
-    the temperature are measured on (:func:`labelled_latents`)."""
-    if labelled is not None and real_voices:
-        raise EmogestureError("--labelled and --real-voices: one source of real voices' means at a time")
+    read-out only (:func:`telephone_band_latents`)."""
     if not 0.5 <= quantile < 1.0:
         raise EmogestureError(f"quantile {quantile}: must be in [0.5, 1)")
     if split in ("train", "test"):
@@ -133,12 +121,7 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     held = encode_split(encoder, cache, split)
     windows = cache.split("train")
     held_emotions = cache.split(split).emotion
-    real = real_emotions = real_speakers = None
-    if labelled is not None:
-        real, real_emotions, real_speakers = labelled_latents(encoder, labelled, "train")
-        held_real, held_real_emotions, _ = labelled_latents(encoder, labelled, split)
-        held = concat_windows([held, held_real])
-        held_emotions = np.concatenate([held_emotions, held_real_emotions])
+    real = real_emotions = None
     if real_voices:
         root = Path(cache.manifest["root"])
         try:
@@ -152,13 +135,10 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
         band, band_emotions = telephone_band_latents(encoder, cache)
     perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile,
                                 held_out_emotions=held_emotions, real=real, real_emotions=real_emotions,
-                                band=band, band_emotions=band_emotions, real_speakers=real_speakers)
+                                band=band, band_emotions=band_emotions)
     perception.info.update(split=split, trained_on=trained_on)
     if real_voices:
         perception.info.update(real_voices=list(real_voices), real_stretches=int(real_stretches))
-    if labelled is not None:
-        perception.info.update(labelled=Path(labelled).name, labelled_windows=int(len(real_emotions)),
-                               labelled_held_out_windows=int(len(held_emotions) - len(cache.split(split).emotion)))
     # the weights file a gesture model trained on this network names (the file's checksum changes here)
     before = (loaded.metadata.emotion_perception or {}).get("info") or {}
     perception.info["calibrated_from"] = before.get("calibrated_from", loaded.weights_sha256)
@@ -189,24 +169,6 @@ def telephone_band_latents(encoder: SpeechLatentEncoder, cache, split: str = "tr
 def concat_windows(parts: list[EncodedWindows]) -> EncodedWindows:
     """The windows of several :class:`EncodedWindows` one after another (their stored latents and logits)."""
     return EncodedWindows(*(np.concatenate([getattr(e, k) for e in parts]) for k in EncodedWindows.stored))
-
-
-def labelled_latents(encoder: SpeechLatentEncoder, manifest: str | PathLike[str], split: str,
-                     hop_seconds: float = 7.0) -> tuple[EncodedWindows, np.ndarray, np.ndarray]:
-    """The ``split`` speakers of a labelled-speech manifest, each speaker's clips of one emotion joined
-    (:func:`~emogesture.data.labelled_speech.labelled_recordings`) and heard as ``generate`` hears them, in 10-s
-    windows every ``hop_seconds`` -> the windows, their emotions ``[R]`` (indices into ``EMOTIONS``) and their
-    speakers ``[R]`` (indices into the split's sorted speaker names)."""
-    recordings = labelled_recordings(read_manifest(manifest), split, 10.0)
-    names = sorted({name.rsplit("_", 1)[0] for name in recordings})
-    encoded, emotions, speakers = [], [], []
-    for name, (wave, emotion) in tqdm(recordings.items(), desc=f"labelled speech, {split} speakers",
-                                      unit="recording", disable=None):
-        enc = encoder.encode(wave, hop_seconds=hop_seconds)[0]
-        encoded.append(enc)
-        emotions += [EMOTIONS.index(emotion)] * len(enc.emotion)
-        speakers += [names.index(name.rsplit("_", 1)[0])] * len(enc.emotion)
-    return concat_windows(encoded), np.asarray(emotions), np.asarray(speakers)
 
 
 def real_voice_latents(encoder: SpeechLatentEncoder, names: list[str], stretches: int,

@@ -7,8 +7,8 @@ emotion perception's calibration, the labelled speech's actor split and the gene
 ships with. :func:`build_bundle` runs every stage that is not finished yet (a stage folder whose model
 reached its steps is kept; an interrupted one resumes from its checkpoint), calibrates, and bundles.
 
-A stage marked ``needs: labelled`` runs only when labelled speech (RAVDESS) is given. With labelled speech and
-``perception.front_end``, the calibrated speech model's perception also gets the read-out of the front end
+The stages are the same with or without labelled speech (RAVDESS), which feeds the front end's read-out only:
+with ``perception.front_end``, the calibrated speech model's perception also gets the read-out of the front end
 trained on real speech (:mod:`emogesture.train.heard_readout`), fitted on the corpus and the labelled speakers.
 """
 
@@ -38,18 +38,12 @@ class Stage:
     losses: str = "adversarial"  # speech models
     start_from: str | None = None  # a speech stage trained on from an earlier stage's model
     speech: str | None = None  # the gesture model's speech stage (None: the last speech stage before it)
-    needs: str | None = None  # "labelled": only when labelled speech is given
     checkpoint_every: int = 100
 
-    def overrides(self, labelled: Path | None = None) -> list[str]:
-        """The settings as ``KEY=VALUE`` overrides; ``{labelled}`` in a value is the labelled-speech manifest."""
-        out = []
-        for key, value in self.settings.items():
-            text = json.dumps(value) if isinstance(value, (list, dict, bool)) else str(value)
-            if "{labelled}" in text:
-                text = text.replace("{labelled}", str(labelled))
-            out.append(f"{key}={text}")
-        return out
+    def overrides(self) -> list[str]:
+        """The settings as ``KEY=VALUE`` overrides."""
+        return [f"{key}={json.dumps(value) if isinstance(value, (list, dict, bool)) else value}"
+                for key, value in self.settings.items()]
 
 
 @dataclass(frozen=True)
@@ -67,16 +61,11 @@ class Recipe:
                 return s
         raise ConfigError(f"the recipe has no stage {name!r}")
 
-    def active(self, labelled: bool) -> list[Stage]:
-        """The stages that run, with or without labelled speech."""
-        return [s for s in self.stages if s.needs is None or (s.needs == "labelled" and labelled)]
-
-    def speech_of(self, stage: Stage, labelled: bool) -> Stage:
+    def speech_of(self, stage: Stage) -> Stage:
         """The speech stage a gesture stage trains on: its ``speech``, else the last speech stage before it."""
-        active = self.active(labelled)
         if stage.speech is not None:
             return self.stage(stage.speech)
-        before = [s for s in active[: active.index(stage)] if s.model == "speech"]
+        before = [s for s in self.stages[: self.stages.index(stage)] if s.model == "speech"]
         if not before:
             raise ConfigError(f"recipe stage {stage.name!r}: no speech stage before it")
         return before[-1]
@@ -150,8 +139,8 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
                  report=print) -> Path:
     """Train, calibrate and bundle ``recipe`` on the windows cache ``cache`` into ``run`` (each stage in its
     own folder, the bundle in ``run/bundle``); ``labelled_root``: RAVDESS's ``audio_speech_actors_01-24``
-    folder (its stages and calibration then run). Every finished step is kept; each training's wall time is
-    appended to ``run/times.txt``. Returns the bundle folder."""
+    folder (with ``perception.front_end``, its train actors teach the front end's read-out). Every finished
+    step is kept; each training's wall time is appended to ``run/times.txt``. Returns the bundle folder."""
     from emogesture.bundle import bundle_models
     from emogesture.train.fallback_style import calibrate_fallback_run
     from emogesture.train.perception import calibrate_perception_run
@@ -161,13 +150,13 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
     run.mkdir(parents=True, exist_ok=True)
     labelled = (labelled_manifest(recipe, labelled_root, run / "labelled.csv") if labelled_root is not None
                 else None)
-    for stage in recipe.active(labelled is not None):
+    for stage in recipe.stages:
         out = run / stage.name
         if finished(out, stage.steps):
             continue
         report(f"{stage.name}: {stage.model} model, {stage.steps} steps")
         options = RunOptions(steps=stage.steps, checkpoint_every=stage.checkpoint_every, progress=progress)
-        overrides = stage.overrides(labelled)
+        overrides = stage.overrides()
         start = time.time()
         if stage.model == "speech":
             train_speech(cache, out, losses=stage.losses, overrides=overrides, options=options,
@@ -175,14 +164,13 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
         elif stage.model == "extractor":
             train_extractor(cache, out, overrides=overrides, options=options)
         else:
-            speech = run / recipe.speech_of(stage, labelled is not None).name
+            speech = run / recipe.speech_of(stage).name
             train_gesture(cache, out, speech=speech, overrides=overrides, options=options)
         with (run / "times.txt").open("a") as f:
             f.write(f"{stage.name}: {time.time() - start:.0f} s\n")
-    active = recipe.active(labelled is not None)
-    speech = run / [s for s in active if s.model == "speech"][-1].name
-    gesture = run / [s for s in active if s.model == "gesture"][-1].name
-    extractor = [s for s in active if s.model == "extractor"]
+    speech = run / [s for s in recipe.stages if s.model == "speech"][-1].name
+    gesture = run / [s for s in recipe.stages if s.model == "gesture"][-1].name
+    extractor = [s for s in recipe.stages if s.model == "extractor"]
     perception = recipe.perception
     if not (run / "speech_calibrated" / "model.json").exists():
         calibrate_perception_run(speech, cache, run / "speech_calibrated",

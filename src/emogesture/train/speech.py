@@ -11,15 +11,13 @@ import lightning as L
 import torch
 from torch.utils.data import DataLoader
 
-from emogesture.audio import TARGET_SAMPLE_RATE, augment_fbank
+from emogesture.audio import augment_fbank
 from emogesture.audio.wave_augment import WaveAugmentConfig
 from emogesture.checkpoints import load_model, model_paths, save_model
 from emogesture.config import ANY_VALUE, changed_keys, from_dict, to_dict
 from emogesture.data.beat import EMOTIONS
 from emogesture.data.cache import concat_splits, open_cache
-from emogesture.data.datasets import (AugmentedWindowBank, LabelledRealWindows, SpeechQuadrupleDataset,
-                                      WaveWindowAugmenter)
-from emogesture.data.labelled_speech import labelled_recordings, read_manifest
+from emogesture.data.datasets import AugmentedWindowBank, SpeechQuadrupleDataset, WaveWindowAugmenter
 from emogesture.errors import ConfigError
 from emogesture.models.metadata import SpeechMetadata
 from emogesture.models.pretrained import adapt_deit_to_audio, init_speech_model_from_pretrained, load_deit_state_dict
@@ -34,11 +32,13 @@ class SpeechTrainConfig:
 
     #: Tried and not adopted, removed: a word-order scramble of the emotion encoder's input
     #: (experiments/speech_model/), real voices taught as neutral or given the corpus's emotions, a pull of
-    #: the real windows' emotion latents toward the batch's (experiments/real_voices_in_training/; see
-    #: :func:`emogesture.config.from_dict`).
+    #: the real windows' emotion latents toward the batch's (experiments/real_voices_in_training/), and
+    #: emotion-labelled real speech in each quadruple, superseded by the front end's read-out
+    #: (experiments/ravdess/; see :func:`emogesture.config.from_dict`).
     RETIRED: ClassVar[dict] = {"emotion_scramble": 0, "emotion_scramble_share": ANY_VALUE, "real_neutral": [],
                                "real_neutral_weight": ANY_VALUE, "real_neutral_pull": 0.0,
-                               "real_emotion_share": ANY_VALUE}
+                               "real_emotion_share": ANY_VALUE, "real_labelled": "",
+                               "real_labelled_weight": ANY_VALUE}
 
     model: SpeechModelConfig = field(default_factory=lambda: SpeechModelConfig.preset("tiny"))
     losses: SpeechLossConfig = field(default_factory=SpeechLossConfig)
@@ -62,16 +62,9 @@ class SpeechTrainConfig:
     #: drawn afresh, in the data workers). With ``K`` > 0, ``K`` draws of the augmented conditions per window
     #: are made in parallel on every core and kept in memory (float16; about 2 GB for 1200 windows at 8), and
     #: an augmented window is one of them, drawn per item; the fbank masks, noise and shifts are still drawn
-    #: afresh, and the labelled real windows too. On a CPU this takes the waveform augmentation, most of a
-    #: step's work, off the training steps (:class:`emogesture.data.datasets.AugmentedWindowBank`).
+    #: afresh. On a CPU this takes the waveform augmentation, most of a step's work, off the training steps
+    #: (:class:`emogesture.data.datasets.AugmentedWindowBank`).
     wave_variants: int = 0
-    #: Emotion-labelled real speech a user holds: the path of its manifest
-    #: (:mod:`emogesture.data.labelled_speech`; empty: none). Each quadruple brings one window of its train
-    #: split's speakers (an emotion drawn evenly, then one speaker's recordings of it), heard through the same
-    #: augmented conditions (``wave_augment``), and the emotion classifier learns to hear it as its emotion
-    #: (cross-entropy times ``real_labelled_weight``, added to the losses).
-    real_labelled: str = ""
-    real_labelled_weight: float = 1.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -108,8 +101,7 @@ class SpeechTrainConfig:
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
-                 wave: WaveAugmentConfig | None = None, wave_variants: int = 0, progress: bool = True,
-                 real_labelled: str = ""):
+                 wave: WaveAugmentConfig | None = None, wave_variants: int = 0, progress: bool = True):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -118,18 +110,10 @@ class SpeechDataModule(L.LightningDataModule):
         self.speakers = sorted(set(self.train.speaker_id.tolist()))
         self.batch_size, self.seed, self.num_workers = batch_size, seed, num_workers
         augmenter = (WaveWindowAugmenter(self.cache, self.train, wave or WaveAugmentConfig())
-                      if wave_augment > 0 or real_labelled else None)
-        real = None
-        if real_labelled:
-            seconds = augmenter.window_samples / TARGET_SAMPLE_RATE + 1.0  # short ones repeated past a window
-            recordings = labelled_recordings(read_manifest(real_labelled), "train", seconds)
-            try:
-                real = LabelledRealWindows(augmenter, list(recordings.values()), wave_augment)
-            except ValueError as err:
-                raise ConfigError(f"real_labelled {real_labelled}: {err}") from None
+                     if wave_augment > 0 else None)
         self.wave_variants, self.progress = wave_variants, progress
-        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed,
-                                              augmenter if wave_augment > 0 else None, wave_augment, real)
+        self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, augmenter,
+                                              wave_augment)
 
     def setup(self, stage: str) -> None:
         """With ``wave_variants``, the augmented-window bank is made here: after the run's checks, before the
@@ -179,24 +163,10 @@ class SpeechModule(AveragedWeightsMixin, L.LightningModule):
             inputs = augment_fbank(inputs.reshape(b * k, t, f).cpu(), g, self.cfg.freq_mask, self.cfg.time_mask,
                                    self.cfg.noise_std, self.cfg.max_shift).reshape(b, k, t, f).to(fbank.device)
         losses = speech_losses(self.model, inputs, batch["emotion"], batch["speaker"], self.cfg.losses, target=fbank)
-        if "real" in batch and self.cfg.real_labelled_weight > 0:
-            losses["real_labelled"] = self.real_labelled_loss(batch["real"], batch["real_emotion"])
-            losses["total"] = losses["total"] + self.cfg.real_labelled_weight * losses["real_labelled"]
         self.log_dict({f"train/{k}": v.detach() for k, v in losses.items()}, on_step=True, prog_bar=False,
                       batch_size=fbank.shape[0])
         self.log("loss", losses["total"].detach(), prog_bar=True, batch_size=fbank.shape[0])
         return losses["total"]
-
-    def real_labelled_loss(self, real: torch.Tensor, real_emotion: torch.Tensor) -> torch.Tensor:
-        """For labelled real windows ``[B, 1024, n_mels]`` (:attr:`SpeechTrainConfig.real_labelled`) of emotions
-        ``real_emotion [B]``, through the same spectrogram augmentation as the corpus's: the emotion
-        classifier's cross-entropy toward their emotions."""
-        if self.cfg.augment:
-            g = step_generator(self.seed, self.global_step, self.global_rank, 2)
-            real = augment_fbank(real.cpu(), g, self.cfg.freq_mask, self.cfg.time_mask, self.cfg.noise_std,
-                                 self.cfg.max_shift).to(real.device)
-        enc = self.model.encode(real, parts=("emotion",))
-        return torch.nn.functional.cross_entropy(enc.emotion_logits, real_emotion)
 
     def configure_optimizers(self):
         c = self.cfg
@@ -244,15 +214,12 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int, progress: bool 
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
     if config.wave_variants < 0 or (config.wave_variants > 0 and config.wave_augment == 0):
         raise ConfigError(f"wave_variants {config.wave_variants}: must be >= 0, and needs wave_augment > 0")
-    if config.real_labelled_weight < 0:
-        raise ConfigError(f"real_labelled_weight {config.real_labelled_weight}: must be >= 0")
     try:
         config.wave.validate()
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits, config.wave_augment, config.wave, config.wave_variants, progress,
-                            config.real_labelled)
+                            config.train_splits, config.wave_augment, config.wave, config.wave_variants, progress)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
