@@ -19,6 +19,7 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.models.perception import EmotionPerception
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
+from emogesture.pipeline.voice_features import FEATURES, front_end_installed, hearing_plan, whisper_features
 from emogesture.runtime import StageTimes, autocast, bf16_weights, hold_bf16_weights, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
@@ -180,13 +181,9 @@ class SpeechLatentEncoder:
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
-        from emogesture.pipeline.voice_features import FEATURES, front_end_installed, hearing_plan, whisper_features
-
-        front_end = (front_end and self.perception is not None and self.perception.heard is not None
-                     and front_end_installed())
-        if front_end:
-
-            # only the windows the perception does not trust fully: it reads the rest
+        hears = (front_end and self.perception is not None and self.perception.heard is not None
+                 and front_end_installed())
+        if hears:  # only the windows the perception does not trust fully: it reads the rest
             need = np.ones(len(starts), bool)
             if "emotion" in parts and "style" in parts:
                 need = self.perception.trust(enc.emotion, enc.style) < 1.0
@@ -198,7 +195,7 @@ class SpeechLatentEncoder:
                     features = hearer(waveform, [starts[i] for i in heard])
                 enc.heard_features[need] = (weights[need] @ features).astype(np.float32)
         # the pitch-moved hearings serve the latents' own read-out, which the front end's replaces
-        if perception_semitones > 0 and "emotion" in parts and not front_end:
+        if perception_semitones > 0 and "emotion" in parts and not hears:
             from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up
 
             shifted = []
