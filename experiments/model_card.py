@@ -16,7 +16,7 @@ import numpy as np
 
 from emogesture.bundle import write_checksums
 from emogesture.checkpoints import write_text_atomic
-from emogesture.data.synthetic.corpus import CORPUS_VERSION
+from emogesture.data.synthetic.corpus import CORPUS_VERSION, MARKER
 from emogesture.eval.real_speech import heard_text
 from emogesture.pipeline.generate import HOP_SECONDS
 from emogesture.types import EMOTIONS
@@ -227,7 +227,15 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     fallback = json.loads((bundle / "gesture.json").read_text())["extra"].get("fallback_style")
     fallback_text = fallback_sentence(fallback)
     semitones = shift.get("perception_semitones", 0)
-    hearings_text = (f" The emotion a window is heard as is the mean of three hearings: as recorded and with the "
+    shift_how = ("; measured before the front end trained on real speech heard the windows the perception does "
+                 f"not trust, each window heard three times, the voice also moved {semitones:g} semitones up and down"
+                 if perception.get("heard") and not shift.get("front_end") and semitones else "")
+    hearings_text = (" Where the perception does not trust a window fully, the front end trained on real speech "
+                     "hears it (of a run of such windows, one every 20 s, the first and the last, those between "
+                     "interpolated) and what it hears is the emotion reported and, where the trust is low, the one "
+                     "animated; the voice is not heard again moved in pitch (that serves models without the front "
+                     "end's read-out)." if perception.get("heard") else
+                     f" The emotion a window is heard as is the mean of three hearings: as recorded and with the "
                      f"voice moved {semitones:g} semitones up and down (the generation setting "
                      "`perception_semitones`), so a voice pitched unlike the training voices is not read by its "
                      "pitch alone; the trust and the latents animated are the recording's own."
@@ -263,7 +271,9 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
         f"{r['median_voice_distance_over_threshold']:.2f} | {r['share_blended_toward_neutral']:.2f} |"
         for name, r in shift["rows"].items())
     total_mb = sum(sizes.values()) / 1e6
-    corpus_version = CORPUS_VERSION  # the corpus `bundled_model.sh` builds and trains on
+    # the version of the corpus the cache was prepared from (that of the code when its marker is missing)
+    marker = Path(json.loads((Path(cache_dir) / "manifest.json").read_text())["root"]) / MARKER
+    corpus_version = json.loads(marker.read_text())["version"] if marker.is_file() else CORPUS_VERSION
     shares = [r["share_blended_toward_neutral"] for r in shift["rows"].values()]
     blended_orig, blended_lo, blended_hi = shares[0], min(shares[1:]), max(shares[1:])
     stats = gesture["table"]["motion_stats"]
@@ -338,7 +348,7 @@ Rebuild from scratch (about 85 minutes on 2 cores, 75 of them training):
 | measure | value |
 |---|---|
 | EA / SA (the speech model's classifier heads: emotion / speaker from the audio; SA on the train speakers' windows) | {speech['EA']:.3f} / {speech['SA']:.3f} |
-| EA of the emotion perception, each prepared window heard once (the emotion head, and the nearest emotion mean where the window lies within the calibrated range; `generate`'s three hearings: the table below) | {metrics['EA, the emotion perception']:.3f} |
+| EA of the emotion perception, each prepared window heard once (the emotion head, and the nearest emotion mean where the window lies within the calibrated range; `generate` as it hears: the table below) | {metrics['EA, the emotion perception']:.3f} |
 | the same on the voices it never heard (the test speakers' windows) | {metrics['EA, held-out voices']:.3f} |
 | GA: the generated motion's emotion, read by the extractor (ground truth: {gt['GA']:.3f}) | {ours['GA']:.3f} |
 | GA with `--emotion auto` (the default of `generate`) | {metrics['GA, --emotion auto']:.3f} |
@@ -386,7 +396,7 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
   perception; `--emotion LABEL` or `--emotion-from WAV` sets the emotion yourself, which is the
   reliable way on real speech.
 - **How the perception behaves away from the training voices** (held-out takes changed on purpose;
-  distances in units of their thresholds; `experiments/reports/bundled_model/perception_shift.md`):
+  distances in units of their thresholds; `experiments/reports/bundled_model/perception_shift.md`{shift_how}):
 
 | audio | perceived emotion correct | median emotion distance | median voice distance | share blended toward neutral |
 |---|---|---|---|---|

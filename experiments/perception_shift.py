@@ -9,8 +9,9 @@ noise alone (no speech at all). For each, over every 10-s window: how often the
 perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
 the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
 share of windows that `generate --emotion auto` blends toward neutral. Each window is heard as `generate`
-hears it (the default generation settings: noise suppression, and the voice heard also moved
-``perception_semitones`` up and down).
+hears it (the default generation settings: noise suppression; the windows the perception does not trust heard
+by the front end trained on real speech where the bundle has its read-out and its packages are installed, else
+the voice heard also moved ``perception_semitones`` up and down).
 
 Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT] [SEMITONES]
 (SEMITONES: the pitch-shifted hearings; default: the setting of the bundle SPEECH_MODEL belongs to)
@@ -31,6 +32,7 @@ from emogesture.data.cache import open_cache
 from emogesture.pipeline.generate import bundle_generation
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
+from emogesture.pipeline.voice_features import front_end_installed
 
 
 def pink(length: int, rng: np.random.Generator) -> np.ndarray:
@@ -61,7 +63,7 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
         hits, dist, voice, low, trust, labels = [], [], [], [], [], []
         for take in takes:
             wave, _ = load_audio(root / "wave16k" / f"{take}.wav")
-            enc, starts = encoder.encode(change(wave), 16000, 8.0, perception_semitones=semitones)
+            enc, starts = encoder.encode(change(wave), 16000, 8.0, perception_semitones=semitones, front_end=True)
             p = perceive(enc, starts, perception, take)
             hits += [lab == EMOTIONS[emotion_of[take]] for lab in p.labels]
             labels += p.labels
@@ -77,7 +79,9 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
                       "perceived_emotions": counts}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    front_end = perception is not None and perception.heard is not None and front_end_installed()
     result = {"split": split, "takes": len(takes), "held_out": which, "perception_semitones": semitones,
+              "front_end": front_end,
               "thresholds": {"emotion": perception.emotion.threshold,
               "voice": perception.voice.threshold}, "threshold_info": perception.info, "rows": rows}
     (out / "perception_shift.json").write_text(json.dumps(result, indent=1) + "\n")
@@ -86,7 +90,10 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
              "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
              "latent's to the nearest training speaker; each over its trust threshold (the "
              f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows). "
-             + (f"Each window heard as recorded and with the voice moved {semitones:g} semitones up and down (the "
+             + ("The windows the perception does not trust fully heard by the front end trained on real speech "
+                "(one every 20 s of a run of them, those between interpolated), as `generate` hears them."
+                if front_end else
+                f"Each window heard as recorded and with the voice moved {semitones:g} semitones up and down (the "
                 "probabilities averaged)." if semitones else "Each window heard once."), "",
              "| audio | windows | perceived emotion correct | median emotion distance / threshold | median voice "
              "distance / threshold | blended toward neutral (`--emotion auto`) | mean trust | most perceived |",
