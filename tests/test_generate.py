@@ -352,18 +352,25 @@ def test_largest_joint_jumps():
     np.testing.assert_allclose(largest_joint_jumps(torch.from_numpy(joints)), expected, rtol=1e-6)
 
 
-def test_cli_errors_are_one_line(runs, tmp_path):
+def test_cli_errors_are_one_line(runs, tmp_path, capsys):
+    from emogesture.cli.main import main
+
     bad = tmp_path / "bad.wav"
     bad.write_bytes(b"not audio at all")
     short = tmp_path / "short.wav"
     sf.write(short, 0.1 * np.ones(1600, np.float32), 16000)
-    for audio, needle in ((bad, "bad.wav"), (short, "too short"), (tmp_path / "none.wav", "none.wav")):
-        out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(audio), "--model",
-                              str(runs / "gesture"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
-        assert out.returncode == 2 and needle in out.stderr and len(out.stderr.strip().splitlines()) == 1
-    out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(runs / "other.wav"), "--model",
-                          str(runs / "speech"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
-    assert out.returncode == 2 and "'speech' model, but a 'gesture' model is needed" in out.stderr
+    # the process as a user runs it: its exit status and all it writes to stderr
+    out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(bad), "--model",
+                          str(runs / "gesture"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
+    assert out.returncode == 2 and "bad.wav" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    capsys.readouterr()
+    for audio, needle in ((short, "too short"), (tmp_path / "none.wav", "none.wav")):
+        code = main(["generate", str(audio), "--model", str(runs / "gesture"), "-o", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
+    code = main(["generate", str(runs / "other.wav"), "--model", str(runs / "speech"), "-o", str(tmp_path / "o")])
+    assert code == 2 and "'speech' model, but a 'gesture' model is needed" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
 
 
 def test_flags_that_would_be_ignored_are_errors(tmp_path, capsys):

@@ -52,7 +52,7 @@ def test_posture_and_hand_speed_follow_the_pose():
     assert pooled["elbow_open_share"] == pytest.approx((1.0 + r["elbow_open_share"]) / 2, abs=0.01)
 
 
-def test_motion_stats_command(tmp_path):
+def test_motion_stats_command(tmp_path, capsys):
     make_root(tmp_path / "root", speakers=(1,), takes=(1, 2))
     files = sorted((tmp_path / "root" / "smplxflame_30").glob("*.npz"))
     out = subprocess.run(cli("motion-stats", f"mocap={tmp_path / 'root'}", files[0], "--json", tmp_path / "s.json"),
@@ -62,10 +62,14 @@ def test_motion_stats_command(tmp_path):
     blob = json.loads((tmp_path / "s.json").read_text())
     assert blob["mocap"]["sequences"] == 2 and blob["npz files"]["sequences"] == 1
     assert blob["mocap"]["angular_speed"]["neck"] > 0  # the fixture's random walk moves every joint
-    again = subprocess.run(cli("motion-stats", files[0], "--json", tmp_path / "s.json"), capture_output=True, text=True)
-    assert again.returncode == 2 and "already exists" in again.stderr
-    bad = subprocess.run(cli("motion-stats", tmp_path / "nothing"), capture_output=True, text=True)
-    assert bad.returncode == 2 and "nothing: not found" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    from emogesture.cli.main import main
+
+    capsys.readouterr()
+    assert main(["motion-stats", str(files[0]), "--json", str(tmp_path / "s.json")]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert main(["motion-stats", str(tmp_path / "nothing")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing: not found" in err and len(err.strip().splitlines()) == 1
 
 
 def test_gesture_space_reads_the_body_frame():
