@@ -78,6 +78,17 @@ def cli(*args) -> list[str]:
     return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
 
 
+def cli_here(capsys, *args) -> tuple[int, str, str]:
+    """The ``emogesture`` command line run in this process (no start-up of its own): exit status, stdout,
+    stderr (``capsys``: pytest's fixture)."""
+    from emogesture.cli.main import main
+
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 
 

@@ -13,7 +13,7 @@ from emogesture.errors import EmogestureError, InputFileError
 from emogesture.pipeline.animate import AnimationRequest
 from emogesture.pipeline.batch import animate_files, batch_summary, speech_files
 
-from helpers import cli
+from helpers import cli, cli_here
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,12 @@ def generate(*args, threads=2):
                           env=env)
 
 
-def test_a_batch_goes_on_past_a_bad_file_and_a_killed_one_resumes(talks, tmp_path):
+def generate_here(capsys, *args) -> tuple[int, str, str]:
+    """``generate`` in this process (no start-up of its own): exit status, stdout, stderr."""
+    return cli_here(capsys, "generate", *args, "--format", "npz,bvh", "--quiet")
+
+
+def test_a_batch_goes_on_past_a_bad_file_and_a_killed_one_resumes(talks, tmp_path, capsys):
     out = generate(talks, "-o", tmp_path / "o")
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == [out.stderr.strip()] and "c.wav" in out.stderr  # one line
@@ -43,22 +48,24 @@ def test_a_batch_goes_on_past_a_bad_file_and_a_killed_one_resumes(talks, tmp_pat
     assert sorted(files) == ["a_seed0_0.bvh", "a_seed0_0.npz", "a_seed0_perception.json",
                              "b_seed0_0.bvh", "b_seed0_0.npz", "b_seed0_perception.json"]
 
-    # a batch killed part-way: one recording's npz and another's report are missing
+    # a batch killed part-way: one recording's npz and another's report are missing; the rest in this process
     (tmp_path / "o" / "a_seed0_0.npz").unlink()
     (tmp_path / "o" / "b_seed0_perception.json").unlink()
     kept = (tmp_path / "o" / "a_seed0_0.bvh").stat().st_mtime_ns
-    out = generate(talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o", "--skip-existing")
-    assert out.returncode == 0, out.stderr
+    code, stdout, stderr = generate_here(capsys, talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o",
+                                         "--skip-existing")
+    assert code == 0, stderr
     assert {p.name: p.read_bytes() for p in (tmp_path / "o").iterdir()} == files  # as the uninterrupted run
     assert (tmp_path / "o" / "a_seed0_0.bvh").stat().st_mtime_ns == kept  # what existed was left alone
-    out = generate(talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o", "--skip-existing")
-    assert out.returncode == 0 and "0 of 2 recordings animated, 2 already done (skipped)" in out.stdout
+    code, stdout, _ = generate_here(capsys, talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o", "--skip-existing")
+    assert code == 0 and "0 of 2 recordings animated, 2 already done (skipped)" in stdout
 
-    out = generate(talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o")  # neither flag: nothing replaced
-    assert out.returncode == 2 and out.stderr.count("already exists") == 2 and "0 of 2" in out.stdout
+    # neither flag: nothing replaced
+    code, stdout, stderr = generate_here(capsys, talks / "a.wav", talks / "b.flac", "-o", tmp_path / "o")
+    assert code == 2 and stderr.count("already exists") == 2 and "0 of 2" in stdout
     assert {p.name: p.read_bytes() for p in (tmp_path / "o").iterdir()} == files
-    out = generate(talks / "a.wav", "-o", tmp_path / "o", "--skip-existing", "--overwrite")
-    assert out.returncode == 2 and "choose one" in out.stderr
+    code, _, stderr = generate_here(capsys, talks / "a.wav", "-o", tmp_path / "o", "--skip-existing", "--overwrite")
+    assert code == 2 and "choose one" in stderr
 
 
 def test_generation_is_bit_reproducible_in_fresh_processes_at_two_threads(talks, tmp_path):

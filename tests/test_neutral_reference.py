@@ -105,8 +105,9 @@ def test_a_reference_needs_a_calibrated_perception_and_latents(perception):
 
 
 def test_generate_reads_the_speech_against_the_neutral_recording(tmp_path, capsys, one_thread):
-    talk, calm = DEMO_CLIPS / "talk.flac", tmp_path / "calm.wav"
-    wave, rate = sf.read(talk, dtype="float32")
+    talk, calm = tmp_path / "talk.wav", tmp_path / "calm.wav"
+    wave, rate = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    sf.write(talk, wave[: 13 * rate], rate)  # (a short request: the page's work is what is tested)
     sf.write(calm, wave[-10 * rate:], rate)  # its last 10 s, as a recording of the same voice
     args = ["generate", str(talk), "--format", "npz", "--seam-candidates", "1", "--device", "cpu", "--quiet"]
     assert main([*args, "-o", str(tmp_path)]) == 0
@@ -175,8 +176,9 @@ def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
     from emogesture.app.page import AppSession
     from emogesture.pipeline.generate import GesturePipeline
 
-    talk, calm = DEMO_CLIPS / "talk.flac", tmp_path / "calm.wav"
-    wave, rate = sf.read(talk, dtype="float32")
+    talk, calm = tmp_path / "talk.wav", tmp_path / "calm.wav"
+    wave, rate = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    sf.write(talk, wave[: 13 * rate], rate)  # (a short request: the page's work is what is tested)
     sf.write(calm, wave[-10 * rate:], rate)
     (tmp_path / "work").mkdir()
     session = AppSession(GesturePipeline.from_run(None, device="cpu"), tmp_path / "work")
@@ -186,9 +188,9 @@ def test_the_web_page_takes_a_neutral_recording_too(tmp_path, one_thread):
     assert "_neutral-calm_" in video and rows
     assert "against calm.wav" in summary and str(tmp_path) not in summary
     video, _, _, summary, _ = session.run(str(talk), "auto", "", 1.0, None, None, 0, 1, "smplx",
-                                          neutral_span=" 10-20 ")  # a calm stretch of the speech itself
-    assert "_neutral-talk-10-20s_" in video
-    assert "read against the speaker's neutral voice in talk.flac 10-20 s" in summary, summary  # the details too
+                                          neutral_span=" 3-13 ")  # a calm stretch of the speech itself
+    assert "_neutral-talk-3-13s_" in video
+    assert "read against the speaker's neutral voice in talk.wav 3-13 s" in summary, summary  # the details too
 
 
 def test_a_stream_reads_the_speech_against_the_reference_from_its_next_update(one_thread):

@@ -12,7 +12,7 @@ from emogesture.data.beat import write_split_csv
 from emogesture.data.prepare import prepare
 from emogesture.train.engine import checkpoint_step
 
-from helpers import cli, make_root
+from helpers import cli, cli_here as run_main, make_root
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +32,7 @@ TRAIN = ("train", "speech", "--quiet", "--set", "batch_size=2", "--set", "sample
 REPORT_SETUP = ("--losses", "adversarial", "--set", "train_splits=[train]")
 
 
-def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
+def test_train_evaluate_and_refuse_other_settings(cache, tmp_path, capsys):
     run = tmp_path / "run"
     out = subprocess.run(cli(*TRAIN, *REPORT_SETUP, "--data", cache, "--out", run, "--steps", 60),
                          capture_output=True, text=True)
@@ -48,9 +48,8 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
     state = torch.load(run / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=True)["state_dict"]
     assert all(torch.equal(v, state[f"ema.{k}"]) for k, v in exported.items())
     assert any(not torch.equal(v, state[f"model.{k}"]) for k, v in exported.items())
-    ev = subprocess.run(cli("evaluate", "speech", run, "--data", cache, "--quadruples", 4),
-                        capture_output=True, text=True)
-    assert ev.returncode == 0, ev.stderr[-2000:]
+    code, _, err = run_main(capsys, "evaluate", "speech", run, "--data", cache, "--quadruples", 4)
+    assert code == 0, err[-2000:]
     report = json.loads((run / "eval" / "speech_test.json").read_text())
     assert (run / "eval" / "speech_test_emotion_confusion.png").stat().st_size > 0
     # a trained tiny model hears what the fixture's tones carry: emotion and speaker above chance
@@ -62,15 +61,15 @@ def test_train_evaluate_and_refuse_other_settings(cache, tmp_path):
     assert report["reconstruction_partner_split"] is None and report["reconstruction_l1"]["XCon"] is None
     assert "not measured" in (run / "eval" / "speech_test.md").read_text()
     # a split the model trained on is refused, in one line
-    seen = subprocess.run(cli("evaluate", "speech", run, "--data", cache, "--split", "train", "--out", tmp_path / "e"),
-                          capture_output=True, text=True)
-    assert seen.returncode == 2 and "trained on the train split" in seen.stderr
-    assert len(seen.stderr.strip().splitlines()) == 1 and not (tmp_path / "e").exists()
-    again = subprocess.run(cli("evaluate", "speech", run, "--data", cache), capture_output=True, text=True)
-    assert again.returncode == 2 and "--overwrite" in again.stderr
-    other = subprocess.run(cli(*TRAIN, *REPORT_SETUP, "--data", cache, "--out", run, "--steps", 60, "--set", "lr=0.1"),
-                           capture_output=True, text=True)
-    assert other.returncode == 2 and "other settings" in other.stderr and len(other.stderr.strip().splitlines()) == 1
+    code, _, err = run_main(capsys, "evaluate", "speech", run, "--data", cache, "--split", "train", "--out",
+                            tmp_path / "e")
+    assert code == 2 and "trained on the train split" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "e").exists()
+    code, _, err = run_main(capsys, "evaluate", "speech", run, "--data", cache)
+    assert code == 2 and "--overwrite" in err
+    code, _, err = run_main(capsys, *TRAIN, *REPORT_SETUP, "--data", cache, "--out", run, "--steps", 60, "--set",
+                            "lr=0.1")
+    assert code == 2 and "other settings" in err and len(err.strip().splitlines()) == 1
 
 
 def test_a_stored_config_with_a_removed_option_at_its_off_value_still_reads():
@@ -91,7 +90,7 @@ def test_a_stored_config_with_a_removed_option_at_its_off_value_still_reads():
             from_dict(SpeechTrainConfig, {**old, key: value})
 
 
-def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
+def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path, capsys):
     run = tmp_path / "run"
     args = cli(*TRAIN, "--data", cache, "--out", run, "--steps", 400, "--checkpoint-every", 3)
     proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -106,22 +105,21 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path):
     assert proc.returncode == -signal.SIGKILL
     saved = checkpoint_step(last)  # the checkpoint survived the kill intact
     assert saved >= 6  # a kill in the middle of a write may leave its hidden temp file; the next run clears it
-    done = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 3, "--checkpoint-every", 3,
-                              "--log-every", 1), capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert f"at step {saved}" in done.stdout
+    code, out, err = run_main(capsys, *TRAIN, "--data", cache, "--out", run, "--steps", saved + 3,
+                              "--checkpoint-every", 3, "--log-every", 1)
+    assert code == 0, err[-2000:]
+    assert f"at step {saved}" in out
     assert checkpoint_step(last) == saved + 3 and not list(run.rglob("*.tmp"))
     assert json.loads((run / "model.json").read_text())["extra"]["step"] == saved + 3
     # a further session keeps the earlier session's log instead of letting Lightning replace it
     first_log = (run / "logs" / "metrics.csv").read_text()
-    more = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", saved + 4, "--log-every", 1),
-                          capture_output=True, text=True)
-    assert more.returncode == 0, more.stderr[-2000:]
+    code, _, err = run_main(capsys, *TRAIN, "--data", cache, "--out", run, "--steps", saved + 4, "--log-every", 1)
+    assert code == 0, err[-2000:]
     assert (run / "logs" / "metrics.1.csv").read_text() == first_log
     assert str(saved + 3) in (run / "logs" / "metrics.csv").read_text().split("\n", 1)[1]
 
 
-def test_data_workers_draw_the_same_windows_and_leave_the_trainer_their_cores(cache, tmp_path):
+def test_data_workers_draw_the_same_windows_and_leave_the_trainer_their_cores(cache, tmp_path, capsys):
     import os
 
     from safetensors.numpy import load_file
@@ -138,23 +136,23 @@ def test_data_workers_draw_the_same_windows_and_leave_the_trainer_their_cores(ca
         weights.append(load_file(run / "model.safetensors"))
     assert all(np.array_equal(weights[0][k], weights[1][k]) for k in weights[0])
     # the worker count is no setting of what is learned: a run resumes with another
-    more = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 9, "--set", "samples_per_epoch=8",
-                              "--set", "wave_augment=0.5", "--set", "num_workers=0"), capture_output=True, text=True)
-    assert more.returncode == 0 and "at step 8" in more.stdout, more.stderr[-2000:]
+    code, out, err = run_main(capsys, *TRAIN, "--data", cache, "--out", run, "--steps", 9, "--set",
+                              "samples_per_epoch=8", "--set", "wave_augment=0.5", "--set", "num_workers=0")
+    assert code == 0 and "at step 8" in out, err[-2000:]
     assert trainer_threads(2, 2, {}) == 1 and trainer_threads(1, 8, {}) == 7
     assert trainer_threads(0, 2, {}) is None and trainer_threads(2, 2, {"OMP_NUM_THREADS": "2"}) is None
 
 
-def test_a_bank_of_augmented_variants_trains_and_needs_augmentation(cache, tmp_path):
+def test_a_bank_of_augmented_variants_trains_and_needs_augmentation(cache, tmp_path, capsys):
     run = tmp_path / "bank"
     out = subprocess.run(cli(*TRAIN, "--data", cache, "--out", run, "--steps", 2, "--set", "samples_per_epoch=8",
                              "--set", "wave_augment=0.5", "--set", "wave_variants=2"), capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert json.loads((run / "run.json").read_text())["config"]["wave_variants"] == 2
-    bad = subprocess.run(cli(*TRAIN, "--data", cache, "--out", tmp_path / "bad", "--steps", 1,
-                             "--set", "wave_variants=2"), capture_output=True, text=True)
-    assert bad.returncode != 0 and "wave_variants 2" in bad.stderr and "Traceback" not in bad.stderr
+    code, _, err = run_main(capsys, *TRAIN, "--data", cache, "--out", tmp_path / "bad", "--steps", 1,
+                            "--set", "wave_variants=2")
+    assert code != 0 and "wave_variants 2" in err and "Traceback" not in err
 
 
 def test_the_banks_bar_shows_on_a_terminal_unless_quiet(cache, monkeypatch):
@@ -243,7 +241,7 @@ def _deit_layout(width: int, depth: int, seed: int = 0) -> dict:
     return {k: torch.randn(*s, generator=g) for k, s in shapes.items()}
 
 
-def test_init_from_deit_weights_starts_every_encoder_there(cache, tmp_path):
+def test_init_from_deit_weights_starts_every_encoder_there(cache, tmp_path, capsys):
     import torch
     from safetensors.torch import save_file
 
@@ -270,10 +268,10 @@ def test_init_from_deit_weights_starts_every_encoder_there(cache, tmp_path):
     assert torch.equal(averaged, deit["blocks.0.attn.qkv.weight"])
 
     missing = tmp_path / "no_such_weights.safetensors"
-    out = subprocess.run(cli(*TRAIN, "--preset", "paper", "--data", cache, "--out", tmp_path / "run", "--steps", 1,
-                             "--init-from", missing), capture_output=True, text=True)
-    assert out.returncode != 0 and "Traceback" not in out.stderr
-    assert f"{missing}: pretrained weights file not found" in out.stderr.strip().splitlines()[-1]
+    code, _, err = run_main(capsys, *TRAIN, "--preset", "paper", "--data", cache, "--out", tmp_path / "run",
+                            "--steps", 1, "--init-from", missing)
+    assert code != 0 and "Traceback" not in err
+    assert f"{missing}: pretrained weights file not found" in err.strip().splitlines()[-1]
 
 
 def test_init_from_a_trained_speech_model_starts_every_weight_there(tmp_path):

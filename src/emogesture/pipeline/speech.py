@@ -188,12 +188,12 @@ class SpeechLatentEncoder:
             if "emotion" in parts and "style" in parts:
                 need = self.perception.trust(enc.emotion, enc.style) < 1.0
             heard, weights = hearing_plan(need, hop_seconds)
-            hearer = whisper_features() if len(heard) else None  # (loaded only when a window needs it)
-            if hearer is not None:
-                enc.heard_features = np.full((len(starts), FEATURES), np.nan, np.float32)
-                with maybe_stage(times, "voice features"):
-                    features = hearer(waveform, [starts[i] for i in heard])
-                enc.heard_features[need] = (weights[need] @ features).astype(np.float32)
+            if len(heard):  # (loaded only when a window needs it)
+                with maybe_stage(times, "voice features"), whisper_features() as hearer:
+                    features = hearer(waveform, [starts[i] for i in heard]) if hearer is not None else None
+                if features is not None:
+                    enc.heard_features = np.full((len(starts), FEATURES), np.nan, np.float32)
+                    enc.heard_features[need] = (weights[need] @ features).astype(np.float32)
         # the pitch-moved hearings serve the latents' own read-out, which the front end's replaces
         if perception_semitones > 0 and "emotion" in parts and not hears:
             from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up

