@@ -3,6 +3,7 @@ gesture-like motion with its forward kinematics."""
 
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import soundfile as sf
@@ -78,15 +79,23 @@ def cli(*args) -> list[str]:
     return [sys.executable, "-m", "emogesture.cli.main", *map(str, args)]
 
 
-def cli_here(capsys, *args) -> tuple[int, str, str]:
-    """The ``emogesture`` command line run in this process (no start-up of its own): exit status, stdout,
-    stderr (``capsys``: pytest's fixture)."""
+class Ran(NamedTuple):
+    """What a command run in this process gave, named as ``subprocess.run``'s result names it."""
+
+    returncode: int
+    stdout: str
+    stderr: str
+
+
+def cli_here(capsys, *args) -> Ran:
+    """The ``emogesture`` command line run in this process (no start-up of its own; ``capsys``: pytest's
+    fixture)."""
     from emogesture.cli.main import main
 
     capsys.readouterr()
     code = main([str(a) for a in args])
     out = capsys.readouterr()
-    return code, out.out, out.err
+    return Ran(code, out.out, out.err)
 
 
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"

@@ -9,7 +9,7 @@ import pytest
 from emogesture.data.beat import write_split_csv
 from emogesture.data.prepare import prepare
 
-from helpers import cli, make_root
+from helpers import cli, cli_here, make_root
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +25,7 @@ def trained(tmp_path_factory):
     return d
 
 
-def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
+def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path, capsys):
     d = trained
     foreign = tmp_path / "other_tool"
     foreign.mkdir()
@@ -36,9 +36,8 @@ def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
         # another tool's file: float64, (T, 55, 3) poses, extra keys, np.savez
         np.savez(foreign / src.name, poses=poses.reshape(-1, 55, 3), trans=trans, betas=np.zeros(10),
                  mocap_frame_rate=np.array(30.0), exporter=np.array("other-tool 1.0"), fps=np.array(30))
-    out = subprocess.run(cli("evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
-                             "--source", f"other={foreign}", "--out", tmp_path / "report"),
-                         capture_output=True, text=True)
+    out = cli_here(capsys, "evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
+                   "--source", f"other={foreign}", "--out", tmp_path / "report")
     assert out.returncode == 0, out.stderr[-2000:]
     r = json.loads((tmp_path / "report" / "gesture_test.json").read_text())
     rows = r["rows"]
@@ -62,16 +61,15 @@ def test_foreign_npz_files_score_like_the_ground_truth(trained, tmp_path):
     md = (tmp_path / "report" / "gesture_test.md").read_text()
     assert "| other |" in md and "beat_sigma_s" in md
     assert (tmp_path / "report" / "gesture_test_other_emotion_confusion.png").read_bytes()[:4] == b"\x89PNG"
-    again = subprocess.run(cli("evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
-                               "--out", tmp_path / "report"), capture_output=True, text=True)
+    again = cli_here(capsys, "evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext",
+                     "--out", tmp_path / "report")
     assert again.returncode == 2 and "--overwrite" in again.stderr
 
 
-def test_missing_take_in_a_source_names_the_file(trained, tmp_path):
+def test_missing_take_in_a_source_names_the_file(trained, tmp_path, capsys):
     (tmp_path / "empty").mkdir()
-    out = subprocess.run(cli("evaluate", "gesture", "--data", trained / "cache", "--extractor", trained / "ext",
-                             "--source", f"x={tmp_path / 'empty'}", "--out", tmp_path / "r"),
-                         capture_output=True, text=True)
+    out = cli_here(capsys, "evaluate", "gesture", "--data", trained / "cache", "--extractor", trained / "ext",
+                   "--source", f"x={tmp_path / 'empty'}", "--out", tmp_path / "r")
     assert out.returncode == 2 and "missing" in out.stderr and ".npz" in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1
 

@@ -23,7 +23,7 @@ from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.train.runs import RunOptions, train_extractor, train_gesture
 from emogesture.train.speech import speech_model_metadata
 
-from helpers import cli, make_root
+from helpers import cli, cli_here, make_root
 
 VARIANTS = ("joint", "disjoint", "no_prior", "no_audio")
 TINY_RESIDUAL_SCALE = GenerationConfig.preset("tiny").residual_scale
@@ -97,14 +97,14 @@ def truth_stretches(r: dict) -> int:
     return len(r["long_audio"]["ground_truth"]["per_stretch"])
 
 
-def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
+def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path, capsys):
     d = trained
     args = ["evaluate", "gesture", "--data", d / "cache", "--extractor", d / "ext", "--out", tmp_path / "r",
             "--long-audio", 30]
     for name, variant in (("ours", "joint"), ("disjoint", "disjoint"), ("no prior", "no_prior"),
                           ("no audio model", "no_audio"), ("with timing", "timing")):
         args += ["--model", f"{name}={d / variant}"]
-    out = subprocess.run(cli(*args), capture_output=True, text=True)
+    out = cli_here(capsys, *args)
     assert out.returncode == 0, out.stderr[-3000:]
     r = json.loads((tmp_path / "r" / "gesture_models_test.json").read_text())
     rows = r["table"]["rows"]
@@ -138,7 +138,7 @@ def test_evaluate_models_writes_table_checks_and_long_audio(trained, tmp_path):
     assert "rhythm: no audio model, |gain| within 3 spreads of 0" in r["checks"]
     assert set(whole["rhythm"]) == {"ours", "ground truth"} and "## Rhythm" in md
     # outputs are never replaced silently
-    again = subprocess.run(cli(*args), capture_output=True, text=True)
+    again = cli_here(capsys, *args)
     assert again.returncode != 0 and "--overwrite" in again.stderr and len(again.stderr.strip().splitlines()) == 1
 
 
@@ -163,7 +163,7 @@ def test_generation_is_seeded_and_batch_independent(trained):
     assert np.allclose(d, e, atol=1e-5) and not np.allclose(a, d)
 
 
-def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
+def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path, capsys):
     from emogesture.checkpoints import content_checksum, file_sha256, model_paths
     from emogesture.pipeline.sampling import generate_from_conditions, window_seeds
     from safetensors.torch import load_file, save_file
@@ -184,18 +184,18 @@ def test_training_ends_with_a_residual_calibration_on_val(trained, tmp_path):
     # `calibrate gesture` writes a calibrated copy (never over an existing model); with the training seed it
     # measures what training stored (the last step's checkpoint is saved before the weight average's last
     # update, so the export when training ends must measure again)
-    same = subprocess.run(cli("calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache",
-                              "--out", tmp_path / "same"), capture_output=True, text=True)
+    same = cli_here(capsys, "calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache",
+                    "--out", tmp_path / "same")
     assert same.returncode == 0, same.stderr[-2000:]
     np.testing.assert_allclose(load_model(tmp_path / "same", "gesture").model.latent_residual_tril.numpy(),
                                model.model.latent_residual_tril.numpy(), atol=1e-5)
     args = ["calibrate", "gesture", "--model", trained / "joint", "--data", trained / "cache", "--out", tmp_path / "cal",
             "--seed", 3, "--scale", 0.5]
-    out = subprocess.run(cli(*args), capture_output=True, text=True)
+    out = cli_here(capsys, *args)
     assert out.returncode == 0 and f"{val_windows} val windows" in out.stdout, out.stderr[-2000:]
     copy = load_model(tmp_path / "cal", "gesture")
     assert copy.generation.residual_scale == 0.5 and copy.metadata.residual_calibration["seed"] == 3
-    again = subprocess.run(cli(*args), capture_output=True, text=True)
+    again = cli_here(capsys, *args)
     assert again.returncode != 0 and "--overwrite" in again.stderr
     # ... and a model file from before calibration existed loads uncalibrated: no residual noise
     weights, meta_path = model_paths(tmp_path / "cal")
@@ -282,14 +282,14 @@ def test_the_papers_design_trains_and_generates_through_the_pipeline(trained):
     assert not np.allclose(a.poses, b.poses)  # the seed draws the motion
 
 
-def test_calibrate_style_chooses_the_speaker_with_typical_motion(trained, tmp_path):
+def test_calibrate_style_chooses_the_speaker_with_typical_motion(trained, tmp_path, capsys):
     from emogesture.provenance import calibration_splits
     from emogesture.pipeline.perception import fallback_style_of
     from emogesture.pipeline.speech import SpeechLatentEncoder
     from emogesture.train.fallback_style import speaker_style_means, typicality_cost
 
-    out = subprocess.run(cli("calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
-                             "--out", tmp_path / "styled", "--windows", 3), capture_output=True, text=True)
+    out = cli_here(capsys, "calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
+                   "--out", tmp_path / "styled", "--windows", 3)
     assert out.returncode == 0 and "fallback style: training speaker" in out.stdout, out.stderr[-2000:]
     styled = load_model(tmp_path / "styled", "gesture")
     record = styled.metadata.fallback_style
@@ -302,8 +302,8 @@ def test_calibrate_style_chooses_the_speaker_with_typical_motion(trained, tmp_pa
     np.testing.assert_allclose(fallback_style_of(styled), means[record["speaker"]], atol=1e-6)
     assert calibration_splits(styled)["fallback_style"] == "val"  # val is no longer held out for this model
     assert fallback_style_of(load_model(trained / "timing", "gesture")) is None
-    again = subprocess.run(cli("calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
-                               "--out", tmp_path / "styled"), capture_output=True, text=True)
+    again = cli_here(capsys, "calibrate", "style", "--model", trained / "timing", "--data", trained / "cache",
+                     "--out", tmp_path / "styled")
     assert again.returncode != 0 and "--overwrite" in again.stderr
 
 
@@ -316,19 +316,19 @@ def test_typicality_cost_is_in_units_of_the_real_speech_tolerances():
     assert typicality_cost({"in_front": 0.4, "wrist_distance": 0.55}, ref) == pytest.approx(1.0)
 
 
-def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_generates(trained, tmp_path):
+def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_generates(trained, tmp_path, capsys):
     from emogesture.provenance import trained_with
     from emogesture.pipeline.generate import GesturePipeline
 
-    out = subprocess.run(cli("calibrate", "speech", "--model", trained / "speech", "--data", trained / "cache",
-                             "--out", tmp_path / "calibrated"), capture_output=True, text=True)
+    out = cli_here(capsys, "calibrate", "speech", "--model", trained / "speech", "--data", trained / "cache",
+                   "--out", tmp_path / "calibrated")
     assert out.returncode == 0, out.stderr[-2000:]
     calibrated, gesture = load_model(tmp_path / "calibrated", "speech"), load_model(trained / "joint", "gesture")
     # the calibration's arrays live in the weights file, so its checksum changed; it names the file it came from
     assert calibrated.weights_sha256 != load_model(trained / "speech", "speech").weights_sha256
     assert trained_with(gesture, calibrated) and calibrated.tensors
-    out = subprocess.run(cli("bundle", "--speech", tmp_path / "calibrated", "--gesture", trained / "joint",
-                             "--out", tmp_path / "bundle"), capture_output=True, text=True)
+    out = cli_here(capsys, "bundle", "--speech", tmp_path / "calibrated", "--gesture", trained / "joint",
+                   "--out", tmp_path / "bundle")
     assert out.returncode == 0, out.stderr[-2000:]
     pipe = GesturePipeline.from_run(tmp_path / "bundle" / "gesture.json")
     assert pipe.speech.perception is not None and pipe.speech.perception.labels == calibrated.metadata.emotion_perception["labels"]
@@ -338,6 +338,5 @@ def test_a_speech_model_calibrated_after_the_gesture_model_trained_bundles_and_g
     torch.manual_seed(1)
     save_model(other, "speech", SpeechDisentangler(calibrated.config), calibrated.config,
                load_model(trained / "speech", "speech").metadata)
-    out = subprocess.run(cli("bundle", "--speech", other, "--gesture", trained / "joint", "--out", tmp_path / "b2"),
-                         capture_output=True, text=True)
+    out = cli_here(capsys, "bundle", "--speech", other, "--gesture", trained / "joint", "--out", tmp_path / "b2")
     assert out.returncode != 0 and "is not the speech model" in out.stderr

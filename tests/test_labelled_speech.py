@@ -11,7 +11,7 @@ from emogesture.data.labelled_speech import (assign_speaker_splits, labelled_rec
                                              read_manifest, scan_layout)
 from emogesture.errors import EmogestureError, InputFileError
 
-from helpers import cli, make_root
+from helpers import cli, cli_here, make_root
 
 
 def _clip(path, seconds=1.5, f0=150.0):
@@ -81,7 +81,7 @@ def test_speakers_are_split_whole_and_by_the_seed(tmp_path):
         assign_speaker_splits(clips, ["actor01"], ["actor01"])
 
 
-def test_the_manifest_round_trip_and_its_errors(tmp_path):
+def test_the_manifest_round_trip_and_its_errors(tmp_path, capsys):
     _ravdess(tmp_path / "data" / "r")
     out = tmp_path / "data" / "labels.csv"
     run = subprocess.run(cli("labelled-speech", "ravdess", tmp_path / "data" / "r", "--out", out,
@@ -91,8 +91,7 @@ def test_the_manifest_round_trip_and_its_errors(tmp_path):
     assert out.read_text().splitlines()[1].startswith("r/Actor_")  # relative to the manifest's folder
     clips = read_manifest(out)
     assert clips == assign_speaker_splits(scan_layout("ravdess", tmp_path / "data" / "r"), 1, 1)
-    again = subprocess.run(cli("labelled-speech", "ravdess", tmp_path / "data" / "r", "--out", out),
-                           capture_output=True, text=True)
+    again = cli_here(capsys, "labelled-speech", "ravdess", tmp_path / "data" / "r", "--out", out)
     assert again.returncode != 0 and "exists" in again.stderr and "Traceback" not in again.stderr
     text = out.read_text()
     for broken, message in ((text.replace("path,emotion", "file,emotion"), "its first line must be"),
@@ -127,7 +126,7 @@ def test_manifest_paths_outside_its_folder_stay_absolute(tmp_path):
     assert text.splitlines()[1].startswith(str(tmp_path / "r"))
 
 
-def test_report_on_labelled_speakers_never_trained_on(tmp_path):
+def test_report_on_labelled_speakers_never_trained_on(tmp_path, capsys):
     make_root(tmp_path / "root", speakers=(1,), takes=(1, 2))  # take 2 (neutral) is the test split
     from emogesture.data.prepare import prepare
 
@@ -136,10 +135,10 @@ def test_report_on_labelled_speakers_never_trained_on(tmp_path):
         for statement in range(4):
             _clip(tmp_path / "r" / f"03-01-01-01-{statement:02d}-01-{actor:02d}.wav", 3.0, 110.0 + 20 * actor)
     manifest = tmp_path / "labels.csv"
-    assert subprocess.run(cli("labelled-speech", "ravdess", tmp_path / "r", "--out", manifest, "--val-speakers", "1",
-                              "--test-speakers", "1"), capture_output=True).returncode == 0
-    out = subprocess.run(cli("evaluate", "real", "--data", tmp_path / "cache", "--out", tmp_path / "report",
-                             "--labelled", manifest, "--seeds", "1"), capture_output=True, text=True)
+    assert cli_here(capsys, "labelled-speech", "ravdess", tmp_path / "r", "--out", manifest, "--val-speakers", "1",
+                    "--test-speakers", "1").returncode == 0
+    out = cli_here(capsys, "evaluate", "real", "--data", tmp_path / "cache", "--out", tmp_path / "report",
+                   "--labelled", manifest, "--seeds", "1")
     assert out.returncode == 0, out.stderr[-2000:]
     md = (tmp_path / "report" / "real_speech.md").read_text()
     val = [c.speaker for c in read_manifest(manifest) if c.split == "val"][0]
