@@ -1,6 +1,7 @@
 """Speech-model training through the command line: a short run, evaluation, resume after a kill, DDP."""
 
 import json
+import shutil
 import signal
 import subprocess
 import time
@@ -116,6 +117,13 @@ def test_killed_run_resumes_from_its_checkpoint(cache, tmp_path, capsys):
     code, _, err = run_main(capsys, *TRAIN, "--data", cache, "--out", run, "--steps", saved + 4, "--log-every", 1)
     assert code == 0, err[-2000:]
     assert (run / "logs" / "metrics.1.csv").read_text() == first_log
+    # a run folder moved elsewhere resumes there, and its last checkpoint stays the one a next resume reads
+    moved = tmp_path / "moved"
+    shutil.copytree(run, moved)
+    code, out, err = run_main(capsys, *TRAIN, "--data", cache, "--out", moved, "--steps", saved + 5)
+    assert code == 0 and f"at step {saved + 4}" in out, err[-2000:]
+    assert checkpoint_step(moved / "checkpoints" / "last.ckpt") == saved + 5
+    assert not list((moved / "checkpoints").glob("last-v*"))
     assert str(saved + 3) in (run / "logs" / "metrics.csv").read_text().split("\n", 1)[1]
 
 

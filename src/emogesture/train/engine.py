@@ -192,6 +192,9 @@ def make_trainer(run_dir: Path, settings: RunSettings, export, extra_callbacks: 
         auto_insert_metric_name=False,
         every_n_train_steps=settings.checkpoint_every,
         save_last=True,
+        # a run folder copied or moved elsewhere and resumed there: Lightning would write last-v1.ckpt beside
+        # the old last.ckpt, and the next resume would start again from the old one
+        enable_version_counter=False,
         save_top_k=1,
         monitor=None,
     )
