@@ -26,6 +26,8 @@ from emogesture.motion import SkeletonBody
 from emogesture.pipeline.generate import EditRequest, GesturePipeline
 from emogesture.pipeline.postprocess import choose_seam_candidates, largest_joint_jumps, seam_costs, stitch
 
+from helpers import cli_here
+
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
@@ -353,8 +355,6 @@ def test_largest_joint_jumps():
 
 
 def test_cli_errors_are_one_line(runs, tmp_path, capsys):
-    from emogesture.cli.main import main
-
     bad = tmp_path / "bad.wav"
     bad.write_bytes(b"not audio at all")
     short = tmp_path / "short.wav"
@@ -363,13 +363,11 @@ def test_cli_errors_are_one_line(runs, tmp_path, capsys):
     out = subprocess.run([sys.executable, "-m", "emogesture.cli.main", "generate", str(bad), "--model",
                           str(runs / "gesture"), "-o", str(tmp_path / "o")], capture_output=True, text=True)
     assert out.returncode == 2 and "bad.wav" in out.stderr and len(out.stderr.strip().splitlines()) == 1
-    capsys.readouterr()
     for audio, needle in ((short, "too short"), (tmp_path / "none.wav", "none.wav")):
-        code = main(["generate", str(audio), "--model", str(runs / "gesture"), "-o", str(tmp_path / "o")])
-        err = capsys.readouterr().err
+        code, _, err = cli_here(capsys, "generate", audio, "--model", runs / "gesture", "-o", tmp_path / "o")
         assert code == 2 and needle in err and len(err.strip().splitlines()) == 1, err
-    code = main(["generate", str(runs / "other.wav"), "--model", str(runs / "speech"), "-o", str(tmp_path / "o")])
-    assert code == 2 and "'speech' model, but a 'gesture' model is needed" in capsys.readouterr().err
+    code, _, err = cli_here(capsys, "generate", runs / "other.wav", "--model", runs / "speech", "-o", tmp_path / "o")
+    assert code == 2 and "'speech' model, but a 'gesture' model is needed" in err
     assert not (tmp_path / "o").exists()
 
 
