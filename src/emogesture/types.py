@@ -12,6 +12,22 @@ FPS = 30
 EMOTIONS: tuple[str, ...] = (
     "neutral", "happiness", "anger", "sadness", "contempt", "surprise", "fear", "disgust",
 )
+#: Apple's 52 ARKit face blendshapes (``ARFaceAnchor.BlendShapeLocation``), in the order Apple lists them
+ARKIT_NAMES: tuple[str, ...] = (
+    "eyeBlinkLeft", "eyeLookDownLeft", "eyeLookInLeft", "eyeLookOutLeft", "eyeLookUpLeft", "eyeSquintLeft",
+    "eyeWideLeft", "eyeBlinkRight", "eyeLookDownRight", "eyeLookInRight", "eyeLookOutRight", "eyeLookUpRight",
+    "eyeSquintRight", "eyeWideRight",
+    "jawForward", "jawLeft", "jawRight", "jawOpen",
+    "mouthClose", "mouthFunnel", "mouthPucker", "mouthLeft", "mouthRight", "mouthSmileLeft", "mouthSmileRight",
+    "mouthFrownLeft", "mouthFrownRight", "mouthDimpleLeft", "mouthDimpleRight", "mouthStretchLeft",
+    "mouthStretchRight", "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper",
+    "mouthPressLeft", "mouthPressRight", "mouthLowerDownLeft", "mouthLowerDownRight", "mouthUpperUpLeft",
+    "mouthUpperUpRight",
+    "browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight",
+    "cheekPuff", "cheekSquintLeft", "cheekSquintRight",
+    "noseSneerLeft", "noseSneerRight",
+    "tongueOut",
+)
 
 
 @dataclass
@@ -23,6 +39,8 @@ class SMPLXSequence:
         trans: ``[T, 3]`` float32 root translation in metres (Y-up).
         betas: ``[B]`` float32 shape coefficients (BEAT2 stores 300).
         expressions: ``[T, E]`` float32 face expression coefficients (BEAT2 stores 100).
+        arkit: ``[T, 52]`` float32 ARKit blendshape weights in ``[0, 1]`` (:data:`ARKIT_NAMES` order), or None
+            when the sequence has no face track.
         fps: frames per second (30 for BEAT2).
         gender: body model gender, 'neutral' for BEAT2.
         model: body model name, 'smplx2020' for BEAT2.
@@ -35,6 +53,7 @@ class SMPLXSequence:
     fps: float = FPS
     gender: str = "neutral"
     model: str = "smplx2020"
+    arkit: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.poses = np.asarray(self.poses, dtype=np.float32)
@@ -52,6 +71,10 @@ class SMPLXSequence:
         self.expressions = np.asarray(self.expressions, dtype=np.float32)
         if self.expressions.ndim != 2 or self.expressions.shape[0] != t:
             raise ValueError(f"expressions must be [{t}, E], got {self.expressions.shape}")
+        if self.arkit is not None:
+            self.arkit = np.asarray(self.arkit, dtype=np.float32)
+            if self.arkit.shape != (t, len(ARKIT_NAMES)):
+                raise ValueError(f"arkit must be [{t}, {len(ARKIT_NAMES)}], got {self.arkit.shape}")
 
     @property
     def num_frames(self) -> int:
@@ -72,4 +95,5 @@ class SMPLXSequence:
             fps=self.fps,
             gender=self.gender,
             model=self.model,
+            arkit=None if self.arkit is None else self.arkit[start:stop].copy(),
         )

@@ -13,7 +13,7 @@ EMOTION_HELP = ("auto (default: the speech's own emotion, blended toward neutral
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("generate", help="animate speech recordings (npz, bvh, mp4, glb, fbx)",
+    p = sub.add_parser("generate", help="animate speech recordings (npz, bvh, mp4, glb, fbx; a face with --face)",
                        description="Animate each SPEECH with the bundled model (or --model), loaded once. Emotion and "
                        "speaker style can come from other recordings, or the emotion from a label. Writes "
                        "<speech>[_edit]_seed<seed>_<sample>.{npz,bvh,mp4,glb,fbx} and <speech>[_edit]_seed<seed>_perception.json "
@@ -38,10 +38,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seconds of the --neutral-from recording to use (e.g. 0-15); without --neutral-from, a calm "
                         "stretch of each speech itself, such as its opening")
     p.add_argument("--format", default="npz,bvh,mp4",
-                   help="comma-separated output formats: npz, bvh, mp4, glb, fbx (fbx needs Blender; default npz,bvh,mp4)")
+                   help="comma-separated output formats: npz, bvh, mp4, glb, fbx, arkit (fbx needs Blender; arkit, "
+                        "a Live Link Face CSV, needs --face; default npz,bvh,mp4)")
     p.add_argument("--skeleton", default="smplx", choices=["smplx", "mixamo"],
                    help="bones of the bvh, glb and fbx files: smplx (55, SMPL-X names; default) or mixamo (52, "
                         "Mixamo's names, for game engines' humanoid rigs)")
+    p.add_argument("--face", action="store_true",
+                   help="animate the face too: lips from the speech's phones, the emotion's expression, blinks and "
+                        "gaze, as ARKit blendshapes in the npz ('arkit', 'arkit_names') and the SMPL-X jaw and eyes")
     p.add_argument("--seed", type=int, default=0, help="seed of the first sample (default 0)")
     p.add_argument("--samples", type=int, default=1, help="number of different samples (default 1)")
     p.add_argument("--seam-candidates", type=int, default=None,
@@ -65,7 +69,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Write FILE.npz as FILE.bvh, FILE.glb, FILE.fbx and/or FILE.mp4 (into --out, "
                        "default beside it).")
     p.add_argument("npz", type=Path, help="an SMPL-X animation in BEAT2's .npz format")
-    p.add_argument("--format", default="bvh,mp4", help="comma-separated: npz, bvh, glb, fbx, mp4 (default bvh,mp4)")
+    p.add_argument("--format", default="bvh,mp4",
+                   help="comma-separated: npz, bvh, glb, fbx, mp4, arkit (an npz with a face; default bvh,mp4)")
     p.add_argument("--audio", type=Path, metavar="WAV", help="speech to put into the video")
     p.add_argument("--skeleton", default="smplx", choices=["smplx", "mixamo"],
                    help="bones of the bvh, glb and fbx files: smplx (default) or mixamo")
@@ -92,7 +97,7 @@ def run_generate(args: argparse.Namespace) -> int:
                                 neutral_span=args.neutral_span, formats=args.format,
                                 seed=args.seed, samples=args.samples,
                                 overwrite=args.overwrite,
-                                skip_existing=args.skip_existing, skeleton=args.skeleton)
+                                skip_existing=args.skip_existing, skeleton=args.skeleton, face=args.face)
     speeches = speech_files(args.speech)
     if args.no_acceleration:
         set_acceleration(False)

@@ -8,7 +8,9 @@
 - ``glb``: binary glTF, a skinned mannequin with the SMPL-X skeleton and the animation
   (:mod:`emogesture.export.gltf`), for Blender, three.js, Godot, Unity and Unreal;
 - ``fbx``: the same character and animation as FBX, written by Blender (:mod:`emogesture.export.fbx`;
-  needs Blender), for Unity, Unreal, Maya and MotionBuilder.
+  needs Blender), for Unity, Unreal, Maya and MotionBuilder;
+- ``arkit``: the face track as a Live Link Face CSV (:mod:`emogesture.export.arkit_csv`; ``name.arkit.csv``), for
+  Unreal's Live Link and the Maya and Blender CSV importers (a sequence with a face only).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from emogesture.errors import EmogestureError
+from emogesture.export.arkit_csv import save_arkit_csv
 from emogesture.export.bvh import save_bvh, sequence_to_bvh
 from emogesture.export.fbx import save_fbx
 from emogesture.export.gltf import save_glb
@@ -29,12 +32,14 @@ from emogesture.motion import save_smplx_npz
 from emogesture.motion.rigs import rig_named
 from emogesture.types import SMPLXSequence
 
-FORMATS = ("npz", "bvh", "mp4", "glb", "fbx")
+FORMATS = ("npz", "bvh", "mp4", "glb", "fbx", "arkit")
+#: the file name ending of each format where it is not ``.<format>``
+SUFFIXES = {"arkit": ".arkit.csv"}
 #: what ``generate`` writes unless told otherwise
 DEFAULT_FORMATS = ("npz", "bvh", "mp4")
 
 __all__ = ["DEFAULT_FORMATS", "FORMATS", "MannequinRenderer", "export_paths", "export_sequence", "parse_formats",
-           "save_bvh", "save_fbx", "save_glb", "save_mp4", "sequence_to_bvh"]
+           "save_arkit_csv", "save_bvh", "save_fbx", "save_glb", "save_mp4", "sequence_to_bvh"]
 
 
 def parse_formats(text: str) -> tuple[str, ...]:
@@ -47,12 +52,12 @@ def parse_formats(text: str) -> tuple[str, ...]:
 
 
 def export_paths(stem: str | PathLike[str], formats: tuple[str, ...]) -> dict[str, Path]:
-    """``out/name`` and formats -> ``{format: out/name.<format>}``."""
+    """``out/name`` and formats -> ``{format: out/name.<format>}`` (``out/name.arkit.csv`` for ``arkit``)."""
     stem = Path(stem)
-    return {f: stem.with_name(f"{stem.name}.{f}") for f in formats}
+    return {f: stem.with_name(stem.name + SUFFIXES.get(f, f".{f}")) for f in formats}
 
 
-def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tuple[str, ...] = FORMATS, *,
+def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tuple[str, ...] = DEFAULT_FORMATS, *,
                     audio: tuple[np.ndarray, int] | None = None, label: str | Sequence[tuple[float, str]] = "",
                     overwrite: bool = False, progress: bool = False, written: Callable[[Path], None] | None = None,
                     skeleton: str = "smplx") -> list[Path]:
@@ -76,6 +81,8 @@ def export_sequence(seq: SMPLXSequence, stem: str | PathLike[str], formats: tupl
             save_glb(seq, path, overwrite=overwrite, skeleton=skeleton)
         elif fmt == "fbx":
             save_fbx(seq, path, overwrite=overwrite, skeleton=skeleton)
+        elif fmt == "arkit":
+            save_arkit_csv(seq, path, overwrite=overwrite)
         else:
             save_mp4(seq, path, audio=audio, label=label, overwrite=overwrite, progress=progress)
         out.append(path)

@@ -12,7 +12,7 @@ import numpy as np
 
 from emogesture.errors import InputFileError, OutputExistsError  # OutputExistsError: emogesture.motion gives it
 from emogesture.fileio import atomic_output
-from emogesture.types import FPS, NUM_JOINTS, SMPLXSequence
+from emogesture.types import ARKIT_NAMES, FPS, NUM_JOINTS, SMPLXSequence
 
 _ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 
@@ -45,7 +45,8 @@ def write_npz_atomic(
 
 def save_smplx_npz(seq: SMPLXSequence, path: str | PathLike[str], overwrite: bool = False) -> Path:
     """Write ``seq`` in the BEAT2 form: ``poses [T, 165]`` float32, ``trans [T, 3]``, ``betas [B]``,
-    ``expressions [T, E]``, ``model``, ``gender``, ``mocap_frame_rate``.
+    ``expressions [T, E]``, ``model``, ``gender``, ``mocap_frame_rate``; with a face track also ``arkit [T, 52]``
+    and ``arkit_names [52]``.
 
     Deterministic (identical input -> identical bytes) and atomic; refuses to replace an
     existing file unless ``overwrite`` (raises ``OutputExistsError``).
@@ -61,6 +62,9 @@ def save_smplx_npz(seq: SMPLXSequence, path: str | PathLike[str], overwrite: boo
         "gender": np.asarray(str(seq.gender)),
         "mocap_frame_rate": rate,
     }
+    if seq.arkit is not None:  # the face track: ARKit weights and their names
+        arrays["arkit"] = np.ascontiguousarray(seq.arkit, np.float32)
+        arrays["arkit_names"] = np.asarray(ARKIT_NAMES)
     return write_npz_atomic(path, arrays, overwrite=overwrite)
 
 
@@ -155,7 +159,14 @@ def load_smplx_npz(path: str | PathLike[str]) -> SMPLXSequence:
             raise InputFileError(path, f"'mocap_frame_rate' must be positive, got {fps}")
         gender = _read_text(data, "gender", "neutral", path)
         model = _read_text(data, "model", "smplx2020", path)
+        arkit = _read(data, "arkit", path)
+        if arkit is not None:
+            arkit = _numeric(arkit, "arkit", path)
+            if arkit.shape != (frames, len(ARKIT_NAMES)):
+                raise InputFileError(path, f"'arkit' must be ({frames}, {len(ARKIT_NAMES)}) to match 'poses', "
+                                           f"got {arkit.shape}")
 
     return SMPLXSequence(
-        poses=poses, trans=trans, betas=betas, expressions=expressions, fps=fps, gender=gender, model=model
+        poses=poses, trans=trans, betas=betas, expressions=expressions, fps=fps, gender=gender, model=model,
+        arkit=arkit,
     )

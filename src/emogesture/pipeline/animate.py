@@ -27,9 +27,11 @@ from tqdm import tqdm
 from emogesture.audio import TARGET_SAMPLE_RATE, window_starts
 from emogesture.errors import EmogestureError
 from emogesture.export import DEFAULT_FORMATS, export_paths, export_sequence, parse_formats
+from emogesture.face.phones import recognise_phones, recogniser_installed
 from emogesture.fileio import atomic_output, check_output
 from emogesture.models.generation import GenerationConfig
 from emogesture.motion.rigs import rig_named
+from emogesture.pipeline.face import animated_emotions, with_face
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline, output_stem
 from emogesture.pipeline.neutral_reference import MIN_SECONDS, reference_name
 from emogesture.pipeline.perception import auto_emotion, heard_by_front_end, perception_of
@@ -112,6 +114,8 @@ class AnimationRequest:
     skip_existing: bool = False
     #: the bones of the bvh, glb and fbx files: ``smplx`` or ``mixamo`` (:mod:`emogesture.motion.rigs`)
     skeleton: str = "smplx"
+    #: a face too (:mod:`emogesture.pipeline.face`): ARKit blendshapes in the npz, the jaw and eyes in the poses
+    face: bool = False
     mode: str = field(init=False, default="auto")  # auto / own, from ``emotion``
     label: str | None = field(init=False, default=None)  # the label edited toward, from ``emotion``
     timeline: EmotionTimeline | None = field(init=False, default=None)  # keyframes, from ``emotion``
@@ -131,6 +135,8 @@ class AnimationRequest:
         :attr:`weight`; raises :class:`EmogestureError` with a one-line message naming the problem."""
         text = self.formats if isinstance(self.formats, str) else ",".join(self.formats)
         self.formats = parse_formats(text)
+        if "arkit" in self.formats and not self.face:
+            raise EmogestureError("--format arkit writes the face: add --face")
         self.timeline = EmotionTimeline.parse(self.emotion) if is_timeline(self.emotion) else None
         self.mode, self.label = ("auto", None) if self.timeline is not None else emotion_request(self.emotion)
         if self.timeline is not None and (self.emotion_from is not None or self.emotion_weight is not None):
@@ -248,6 +254,20 @@ class AnimationResult:
     speech: np.ndarray | None = None
 
 
+def faces(sequences: list[SMPLXSequence], wave: np.ndarray, request: AnimationRequest,
+          perceived: list[PerceivedEmotion]) -> list[SMPLXSequence]:
+    """Each sequence with its face: the speech's phones (when pocketsphinx is installed; else the jaw follows
+    the voice) and the emotion animated, sample ``k`` drawing its blinks and gaze from ``seed + k``."""
+    phones = recognise_phones(wave, TARGET_SAMPLE_RATE) if recogniser_installed() else None
+    out = []
+    for k, seq in enumerate(sequences):
+        emotions = animated_emotions(perceived[0], request.mode, seq.num_frames, label=request.label,
+                                     weight=request.weight, timeline=request.timeline, fps=seq.fps,
+                                     source=perceived[1] if len(perceived) > 1 else None)
+        out.append(with_face(seq, wave, TARGET_SAMPLE_RATE, emotions, phones, seed=request.seed + k))
+    return out
+
+
 def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool = False,
             report: Callable[[str], None] | None = None,
             written: Callable[[Path, SMPLXSequence], None] | None = None, verbose: bool = False) -> AnimationResult:
@@ -322,6 +342,8 @@ def animate(pipe: GesturePipeline, request: AnimationRequest, *, progress: bool 
         sequences = pipe.generate(wave, edit=edit, seed=request.seed, samples=request.samples,
                                   emotion_mode=request.mode, encoded=encoded, progress=bar.update,
                                   generation=settings)
+    if request.face:
+        sequences = faces(sequences, wave, request, perceived)
     files = []
     for k, (seq, stem) in enumerate(zip(sequences, stems)):
         done = None if written is None else (lambda path, seq=seq: written(path, seq))
