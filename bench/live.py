@@ -6,7 +6,9 @@ Also (``--long MINUTES``, default 10): one stream of that many minutes of the re
 library's stream as fast as it goes: the frames against round(seconds x 30), and the process's resident memory
 after each minute (no growth expected: the stream keeps a fixed 10-s buffer and no frames).
 
-Usage: python bench/live.py [--streams 1 4] [--long 10] [--out bench/results/live.md]
+``--face``: every stream asks for the face too (52 ARKit weights per frame).
+
+Usage: python bench/live.py [--streams 1 4] [--long 10] [--face] [--out bench/results/live.md]
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--streams", type=int, nargs="+", default=[1, 4])
     ap.add_argument("--long", type=float, default=10.0, help="minutes of the long stream (0: none)")
+    ap.add_argument("--face", action="store_true", help="every stream with a face (52 ARKit weights a frame)")
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
     args = ap.parse_args()
     with socket.socket() as s:
@@ -63,7 +66,7 @@ def main() -> None:
             rows = []
             for n in args.streams:
                 async def run_all():
-                    return await asyncio.gather(*(stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k)
+                    return await asyncio.gather(*(stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k, face=args.face)
                                                   for k in range(n)))
                 results = asyncio.run(run_all())
                 lat = np.concatenate([r.latency for r in results])
@@ -75,7 +78,8 @@ def main() -> None:
         os.killpg(server.pid, signal.SIGTERM)
     text = ("# emogesture live: latency on this machine\n\n"
             f"`python bench/live.py` ({os.cpu_count()} CPU cores; the bundled model; a 60-s real recording streamed "
-            "at the pace of speech in 100-ms chunks per client). Latency: from the client sending the audio of an "
+            "at the pace of speech in 100-ms chunks per client" + ("; each stream with a face" if args.face else "")
+            + "). Latency: from the client sending the audio of an "
             "instant to it receiving the frame of that instant.\n\n"
             "| streams at once | median (s) | 95th percentile (s) | largest (s) | frames per stream |\n"
             "|---|---|---|---|---|\n" + "\n".join(rows) + "\n")

@@ -96,6 +96,34 @@ def test_the_mixamo_skeleton_comes_as_quaternions(server):
     assert q.shape == (30, 52, 4) and np.allclose(np.linalg.norm(q, axis=-1), 1, atol=1e-3)
 
 
+def test_a_stream_with_a_face_gets_52_arkit_weights_per_frame(server):
+    from websockets.sync.client import connect
+
+    url, clip, proc = server
+    wave = sf.read(clip, dtype="float32")[0][: 3 * 16000]
+    with connect(url) as ws:
+        ws.send(json.dumps({"sample_rate": 16000, "face": True, "emotion": "happiness"}))
+        assert json.loads(ws.recv())["ready"]
+        for piece in np.array_split(wave, 30):
+            ws.send((piece * 32767).astype("<i2").tobytes())
+        ws.send(json.dumps({"end": True}))
+        frames = []
+        while True:
+            reply = json.loads(ws.recv())
+            frames += reply.get("frames", [])
+            if reply.get("done"):
+                break
+    arkit = np.array([f["arkit"] for f in frames])
+    poses = np.array([f["poses"] for f in frames])
+    assert arkit.shape == (90, 52) and arkit.min() >= 0 and arkit.max() <= 1
+    assert arkit[:, 23].mean() > 0.4  # mouthSmileLeft under happiness
+    assert arkit[:, 17].std() > 0.02 and np.allclose(poses[:, 22, 0], 0.45 * arkit[:, 17], atol=1e-3)  # the jaw
+    with connect(url) as ws:
+        ws.send(json.dumps({"sample_rate": 16000, "face": "yes"}))
+        assert "face" in json.loads(ws.recv())["error"]
+    assert proc.poll() is None
+
+
 def test_a_stream_in_a_training_speakers_style(server):
     from websockets.sync.client import connect
 

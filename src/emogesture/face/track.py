@@ -181,22 +181,12 @@ def gaze_track(n: int, rng: np.random.Generator, head_yaw: np.ndarray | None = N
     return np.clip(target, -0.6, 0.6).astype(np.float32)
 
 
-def face_track(waveform: np.ndarray, sample_rate: int, n_frames: int, emotion_weights: np.ndarray | None = None,
-               phones: list[Phone] | None = None, head_yaw: np.ndarray | None = None, seed: int = 0,
-               fps: float = FPS) -> FaceTrack:
-    """The face of a recording ``[N]`` over ``n_frames`` frames.
-
-    ``emotion_weights``: ``[T, 8]`` per frame (EMOTIONS order; None: neutral); ``phones``: from
-    :func:`~emogesture.face.phones.recognise_phones` (None: the jaw follows the loudness alone); ``head_yaw``:
-    ``[T]`` the head's turn in rad (the eyes lead it); ``seed``: blinks and gaze.
-    """
-    level = voice_level(waveform, sample_rate, n_frames, fps)
-    rng = np.random.default_rng(seed)
-    arkit = mouth_track(phones, level, fps) + accent_brows(level, fps)
-    if emotion_weights is not None:
-        arkit += expression_track(np.asarray(emotion_weights, np.float32)[:n_frames], level)
-    blink = blink_track(n_frames, rng, fps)
-    gaze = gaze_track(n_frames, rng, head_yaw, fps)
+def compose(mouth: np.ndarray, brows: np.ndarray, expression: np.ndarray | None, blink: np.ndarray,
+            gaze: np.ndarray, closed: np.ndarray | None = None) -> FaceTrack:
+    """The layers of ``T`` frames -> a :class:`FaceTrack`: ``mouth``, ``brows`` and ``expression`` ``[T, 52]``
+    summed (``expression`` may be None), ``blink`` ``[T]`` and ``gaze`` ``[T, 2]`` added, all clipped to
+    ``[0, 1]``; the lips meet in the ``closed`` frames ``[T]`` whatever the expression opens."""
+    arkit = mouth + brows + (0 if expression is None else expression)
     for side in ("Left", "Right"):
         arkit[:, INDEX[f"eyeBlink{side}"]] = np.maximum(arkit[:, INDEX[f"eyeBlink{side}"]], blink)
     yaw, pitch = gaze[:, 0], gaze[:, 1]
@@ -208,10 +198,30 @@ def face_track(waveform: np.ndarray, sample_rate: int, n_frames: int, emotion_we
         arkit[:, INDEX[f"eyeLookDown{side}"]] += np.maximum(pitch, 0) / EYE_PITCH_RAD
         arkit[:, INDEX[f"eyeLookUp{side}"]] += np.maximum(-pitch, 0) / EYE_PITCH_RAD
     arkit = np.clip(arkit, 0.0, 1.0)
-    closed = closure_frames(phones, n_frames, fps)  # the lips meet, whatever the expression opens
-    arkit[closed, INDEX["mouthClose"]] = arkit[closed, INDEX["jawOpen"]]
-    jaw = np.zeros((n_frames, 3), np.float32)
+    if closed is not None:
+        arkit[closed, INDEX["mouthClose"]] = arkit[closed, INDEX["jawOpen"]]
+    n = len(arkit)
+    jaw = np.zeros((n, 3), np.float32)
     jaw[:, 0] = JAW_RAD * arkit[:, INDEX["jawOpen"]]
-    eyes = np.zeros((n_frames, 2, 3), np.float32)
+    eyes = np.zeros((n, 2, 3), np.float32)
     eyes[:, :, 0], eyes[:, :, 1] = pitch[:, None], yaw[:, None]
     return FaceTrack(arkit.astype(np.float32), jaw, eyes)
+
+
+def face_track(waveform: np.ndarray, sample_rate: int, n_frames: int, emotion_weights: np.ndarray | None = None,
+               phones: list[Phone] | None = None, head_yaw: np.ndarray | None = None, seed: int = 0,
+               fps: float = FPS) -> FaceTrack:
+    """The face of a recording ``[N]`` over ``n_frames`` frames.
+
+    ``emotion_weights``: ``[T, 8]`` per frame (EMOTIONS order; None: neutral); ``phones``: from
+    :func:`~emogesture.face.phones.recognise_phones` (None: the jaw follows the loudness alone); ``head_yaw``:
+    ``[T]`` the head's turn in rad (the eyes lead it); ``seed``: blinks and gaze.
+    """
+    level = voice_level(waveform, sample_rate, n_frames, fps)
+    rng = np.random.default_rng(seed)
+    expression = (None if emotion_weights is None else
+                  expression_track(np.asarray(emotion_weights, np.float32)[:n_frames], level))
+    blink = blink_track(n_frames, rng, fps)
+    gaze = gaze_track(n_frames, rng, head_yaw, fps)
+    return compose(mouth_track(phones, level, fps), accent_brows(level, fps), expression, blink, gaze,
+                   closure_frames(phones, n_frames, fps))

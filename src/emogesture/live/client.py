@@ -44,13 +44,14 @@ def _pcm(path: str | PathLike[str]) -> np.ndarray:
 
 async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "auto", chunk_seconds: float = 0.1,
                       realtime: bool = True, changes: dict[float, str] | None = None, seed: int = 0,
-                      neutral_from: str | PathLike[str] | None = None) -> LiveResult:
+                      neutral_from: str | PathLike[str] | None = None, face: bool = False) -> LiveResult:
     """Send ``path`` to the server at ``url`` in ``chunk_seconds`` pieces (at the pace of speech when
     ``realtime``), changing the emotion at the seconds given in ``changes`` (``{15.0: "sadness"}``).
 
     ``neutral_from``: a recording of the same speaker speaking without emotion, sent first (as fast as it goes)
     between ``{"neutral": "start"}`` and ``{"neutral": "stop"}``; the speech follows once the server has made
-    its reference, and the frames of the neutral recording are left out of the result."""
+    its reference, and the frames of the neutral recording are left out of the result. ``face``: ask for the
+    face too (each frame's ``arkit``)."""
     from websockets.asyncio.client import connect
 
     pcm = _pcm(path)
@@ -71,7 +72,8 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
     reference: dict | None = None
     pending = dict(sorted((changes or {}).items()))
     async with connect(url, max_size=16 * 2 ** 20) as ws:
-        await ws.send(json.dumps({"sample_rate": TARGET_SAMPLE_RATE, "emotion": emotion, "seed": seed}))
+        await ws.send(json.dumps({"sample_rate": TARGET_SAMPLE_RATE, "emotion": emotion, "seed": seed,
+                                  **({"face": True} if face else {})}))
         hello = json.loads(await ws.recv())
         if "error" in hello:
             raise EmogestureError(f"{url}: {hello['error']}")

@@ -3,8 +3,9 @@
 Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
 
 1. The client's first message: ``{"sample_rate": 16000, "emotion": "auto"}``; also optional
-   ``emotion_weight`` (0-1, with a label), ``seed`` (integer), ``skeleton`` (``smplx`` or ``mixamo``) and
-   ``style_from`` (a training speaker's BEAT id: gesture in that speaker's style). The server answers
+   ``emotion_weight`` (0-1, with a label), ``seed`` (integer), ``skeleton`` (``smplx`` or ``mixamo``),
+   ``style_from`` (a training speaker's BEAT id: gesture in that speaker's style) and ``face`` (true: a face
+   too). The server answers
    ``{"ready": true, "fps": 30, "skeleton": ..., "bones": [names], "speakers": [ids for style_from]}``.
 2. Then binary messages: little-endian 16-bit mono PCM at that rate, in chunks of any size.
 3. At any time, text messages ``{"emotion": "anger", "emotion_weight": 0.8}`` change the emotion from the
@@ -19,7 +20,9 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
    order, one frame per 1/30 s of audio: ``{"frame": i, "time": i / 30, "poses": [[x, y, z] x 55]
    (axis-angle, SMPL-X order), "trans": [x, y, z]}``; with ``"skeleton": "mixamo"``,
    ``"rotations"``:
-   a unit quaternion ``[x, y, z, w]`` per bone of ``bones`` (Mixamo's 52) in place of ``poses``.
+   a unit quaternion ``[x, y, z, w]`` per bone of ``bones`` (Mixamo's 52) in place of ``poses``. With
+   ``"face": true`` each frame also has ``"arkit"``: the 52 ARKit blendshape weights in Apple's order (the jaw
+   and eyes are in the poses).
 5. A message the server cannot use (malformed JSON, an unknown key or emotion, text where audio is
    expected, a wrong sample rate) gets ``{"error": "one line"}``; a bad first message also closes the
    connection (code 1008). Other streams never notice.
@@ -56,7 +59,7 @@ from emogesture.types import SMPLXSequence
 
 PAGE = Path(__file__).with_name("page.html")
 RATES = (8000, 48000)
-FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from"}
+FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from", "face"}
 NEUTRAL_SECONDS = 60.0  # the most of a neutral recording kept (the least: neutral_reference.MIN_SECONDS)
 
 
@@ -92,8 +95,11 @@ def open_stream(pipe: GesturePipeline, first: dict) -> tuple[GestureStream, int,
             raise EmogestureError(f"style_from {first['style_from']!r}: one of the model's speakers "
                                   f"{sorted(styles) or '(this model lists none)'}")
         style = styles[first["style_from"]]
+    face = first.get("face", False)
+    if not isinstance(face, bool):
+        raise EmogestureError(f"face {face!r}: true or false")
     stream = GestureStream(pipe, emotion=str(first.get("emotion", "auto")), emotion_weight=first.get("emotion_weight"),
-                           style=style, seed=seed)
+                           style=style, seed=seed, face=face)
     return stream, rate, str(skeleton)
 
 
@@ -112,6 +118,8 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
                 frame["rotations"] = np.round(q[k], 5).tolist()
             else:
                 frame["poses"] = np.round(poses[k], 5).tolist()
+            if block.sequence.arkit is not None:
+                frame["arkit"] = np.round(block.sequence.arkit[k], 4).tolist()
             out.append(frame)
     return json.dumps({"frames": out, "audio_s": round(audio_s, 4)}, separators=(",", ":"))
 

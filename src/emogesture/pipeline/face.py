@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from emogesture.face.phones import Phone
-from emogesture.face.track import face_track
+from emogesture.face.track import (FaceTrack, accent_brows, blink_track, compose, expression_track, face_track,
+                                   gaze_track, mouth_track, voice_level)
 from emogesture.pipeline.perception_report import PerceivedEmotion
 from emogesture.pipeline.timeline import EmotionTimeline
 from emogesture.types import EMOTIONS, FPS, SMPLXSequence
@@ -71,8 +72,42 @@ def with_face(seq: SMPLXSequence, waveform: np.ndarray, sample_rate: int, emotio
     """``seq`` with its face: ``arkit`` ``[T, 52]`` and the jaw and eye joints set from the face track of
     ``waveform`` (``emotions`` ``[T, 8]`` from :func:`animated_emotions`; ``phones``: None, the jaw follows the
     loudness alone)."""
-    face = face_track(waveform, sample_rate, seq.num_frames, emotions, phones=phones, head_yaw=head_yaw(seq),
-                      seed=seed, fps=seq.fps)
+    return face_on(seq, face_track(waveform, sample_rate, seq.num_frames, emotions, phones=phones,
+                                   head_yaw=head_yaw(seq), seed=seed, fps=seq.fps))
+
+
+class StreamFace:
+    """The face of a stream (``GestureStream(face=True)``), update by update: the jaw follows the voice's
+    loudness (phones are not recognised live), the brows the accents of the newest 10 s, the expression the
+    emotion of each update, and the blinks and gaze are drawn from ``seed`` along the stream's own time, a
+    minute at a time."""
+
+    CHUNK_S = 60.0
+
+    def __init__(self, seed: int, fps: float = FPS) -> None:
+        self.seed, self.fps = int(seed), fps
+        self.blink, self.gaze = np.zeros(0, np.float32), np.zeros((0, 2), np.float32)
+
+    def _drawn_until(self, frame: int) -> None:
+        chunk = int(self.CHUNK_S * self.fps)
+        while len(self.blink) < frame:
+            rng = np.random.default_rng([self.seed, len(self.blink) // chunk])
+            self.blink = np.concatenate([self.blink, blink_track(chunk, rng, self.fps)])
+            self.gaze = np.concatenate([self.gaze, gaze_track(chunk, rng, fps=self.fps)])
+
+    def frames(self, window: np.ndarray, sample_rate: int, start: int, count: int, emotion: np.ndarray) -> FaceTrack:
+        """The face of frames ``start .. start + count`` (the newest of the 10-s ``window`` ``[N]``, which ends
+        at the instant of the last), under the emotion weights ``[8]``."""
+        level = voice_level(window, sample_rate, int(round(len(window) / sample_rate * self.fps)), self.fps)
+        tail = slice(len(level) - count, len(level))
+        self._drawn_until(start + count)
+        expression = expression_track(np.tile(np.asarray(emotion, np.float32), (count, 1)), level[tail])
+        return compose(mouth_track(None, level, self.fps)[tail], accent_brows(level, self.fps)[tail], expression,
+                       self.blink[start : start + count], self.gaze[start : start + count])
+
+
+def face_on(seq: SMPLXSequence, face: FaceTrack) -> SMPLXSequence:
+    """``seq`` with ``face``'s ARKit weights, jaw and eyes (the same number of frames)."""
     poses = seq.poses.copy()
     poses[:, JAW] = face.jaw
     poses[:, LEFT_EYE], poses[:, RIGHT_EYE] = face.eyes[:, 0], face.eyes[:, 1]

@@ -39,10 +39,12 @@ import numpy as np
 from emogesture.audio import TARGET_SAMPLE_RATE, resample, window_activity
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.animate import emotion_request
+from emogesture.pipeline.face import StreamFace, face_on, heard_per_frame
 from emogesture.pipeline.generate import WINDOW_SECONDS, EditRequest, GesturePipeline
 from emogesture.pipeline.neutral_reference import NeutralReference
+from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.postprocess import residual_weights
-from emogesture.types import SMPLXSequence
+from emogesture.types import EMOTIONS, SMPLXSequence
 
 __all__ = ["GestureStream", "StreamFrames", "StreamSettings"]
 
@@ -80,12 +82,15 @@ class GestureStream:
     ``emotion_weight`` for a label (None = 1); ``style``: a style latent ``[D]`` to gesture in (another
     voice's, e.g. a training speaker's mean) instead of the speech's own; ``seed``: every draw of the stream
     derives from it; ``neutral_reference``: the speaker's neutral voice to read the speech's emotion against
-    (:mod:`emogesture.pipeline.neutral_reference`; :meth:`set_neutral_reference` changes it)."""
+    (:mod:`emogesture.pipeline.neutral_reference`; :meth:`set_neutral_reference` changes it); ``face``: the
+    frames carry a face too (ARKit weights in ``sequence.arkit``, the jaw and eyes in the poses:
+    :class:`~emogesture.pipeline.face.StreamFace`)."""
 
     def __init__(self, pipe: GesturePipeline, *, emotion: str = "auto", emotion_weight: float | None = None,
                  style: np.ndarray | None = None, seed: int = 0, settings: StreamSettings | None = None,
-                 neutral_reference: NeutralReference | None = None) -> None:
+                 neutral_reference: NeutralReference | None = None, face: bool = False) -> None:
         self.pipe, self.seed = pipe, int(seed)
+        self.face = StreamFace(self.seed, pipe.fps) if face else None
         self.settings = settings or StreamSettings()
         self.fps = pipe.fps
         self.window = int(round(WINDOW_SECONDS * TARGET_SAMPLE_RATE))
@@ -111,7 +116,7 @@ class GestureStream:
             raise EmogestureError(f"emotion_weight {weight}: must be between 0 and 1")
         if weight is not None and label is None:
             raise EmogestureError("emotion_weight needs an emotion label to blend toward")
-        self.mode = mode
+        self.mode, self.label, self.weight = mode, label, 1.0 if weight is None else float(weight)
         self.edit = EditRequest(emotion_label=label, emotion_weight=1.0 if weight is None else float(weight),
                                 style_from=self.style) if label is not None or self.style is not None else None
 
@@ -191,7 +196,20 @@ class GestureStream:
             frames = chosen[best] + fade[:, None] * (self.last - before[best])[None]
         self.last = frames[-1].copy()
         start, self.sent = self.sent, target
-        return StreamFrames(start, self.pipe.to_sequence(frames))
+        sequence = self.pipe.to_sequence(frames)
+        if self.face is not None:
+            sequence = face_on(sequence, self.face.frames(self.audio, TARGET_SAMPLE_RATE, start, new,
+                                                          self._emotion(enc)))
+        return StreamFrames(start, sequence)
+
+    def _emotion(self, enc) -> np.ndarray:
+        """``[8]`` the emotion the face shows at this update: the label at its weight over the speech's own under
+        ``auto``, or the speech's own as ``mode`` says."""
+        heard = perceive(enc, [0.0], perception_of(self.pipe.speech), "stream")
+        own = heard_per_frame(heard, "auto" if self.label is not None else self.mode, 1, self.fps)[0]
+        if self.label is None:
+            return own
+        return (1 - self.weight) * own + self.weight * np.eye(len(own))[EMOTIONS.index(self.label)]
 
     def _fade(self, count: int) -> np.ndarray:
         """The share ``[count]`` of a join's offset left at each of the next frames: 1 -> 0 over the blend."""
