@@ -74,6 +74,17 @@ def test_a_file_streams_to_one_frame_per_thirtieth_of_a_second_with_smooth_joins
     assert proc.poll() is None
 
 
+def ended(ws) -> tuple[list[dict], dict]:
+    """Ends the stream on ``ws``: the frames that come until the server is done, and its last reply."""
+    ws.send(json.dumps({"end": True}))
+    frames = []
+    while True:
+        reply = json.loads(ws.recv())
+        frames += reply.get("frames", [])
+        if reply.get("done"):
+            return frames, reply
+
+
 def test_the_mixamo_skeleton_comes_as_quaternions(server):
     from websockets.sync.client import connect
 
@@ -84,13 +95,7 @@ def test_the_mixamo_skeleton_comes_as_quaternions(server):
         hello = json.loads(ws.recv())
         assert hello["ready"] and len(hello["bones"]) == 52 and hello["bones"][0] == "mixamorig:Hips"
         ws.send(pcm)
-        ws.send(json.dumps({"end": True}))
-        frames = []
-        while True:
-            reply = json.loads(ws.recv())
-            frames += reply.get("frames", [])
-            if reply.get("done"):
-                break
+        frames, reply = ended(ws)
     assert [f["frame"] for f in frames] == list(range(30)) and reply["total_frames"] == 30
     q = np.array([f["rotations"] for f in frames])
     assert q.shape == (30, 52, 4) and np.allclose(np.linalg.norm(q, axis=-1), 1, atol=1e-3)
@@ -106,13 +111,7 @@ def test_a_stream_with_a_face_gets_52_arkit_weights_per_frame(server):
         assert json.loads(ws.recv())["ready"]
         for piece in np.array_split(wave, 30):
             ws.send((piece * 32767).astype("<i2").tobytes())
-        ws.send(json.dumps({"end": True}))
-        frames = []
-        while True:
-            reply = json.loads(ws.recv())
-            frames += reply.get("frames", [])
-            if reply.get("done"):
-                break
+        frames, _ = ended(ws)
     arkit = np.array([f["arkit"] for f in frames])
     poses = np.array([f["poses"] for f in frames])
     assert arkit.shape == (90, 52) and arkit.min() >= 0 and arkit.max() <= 1
