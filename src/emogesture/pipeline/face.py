@@ -42,19 +42,20 @@ def animated_emotions(heard: PerceivedEmotion, mode: str, n: int, *, label: str 
     """``[T, 8]`` the emotion the face shows per frame, as the body is asked for it: the speech's own
     (``mode``), moved by ``weight`` toward ``label`` or toward the emotion heard in ``source`` (an
     ``--emotion-from`` recording, its windows averaged), or the keyframes of ``timeline`` in force."""
-    own = heard_per_frame(heard, mode, n, fps)
     eye = np.eye(len(EMOTIONS))
     if timeline is not None:  # before the first keyframe, and at ``auto`` ones, the speech's own under auto
-        auto, out = heard_per_frame(heard, "auto", n, fps), heard_per_frame(heard, "auto", n, fps)
+        auto, as_heard = heard_per_frame(heard, "auto", n, fps), heard_per_frame(heard, "own", n, fps)
+        out = auto.copy()
         t = np.arange(n) / fps
         for k, frame in enumerate(timeline.keyframes):
             end = timeline.keyframes[k + 1].time if k + 1 < len(timeline.keyframes) else np.inf
             span = (t >= frame.time) & (t < end)
             if frame.label == "own":
-                out[span] = heard_per_frame(heard, "own", n, fps)[span]
+                out[span] = as_heard[span]
             elif frame.label != "auto":
                 out[span] = (1 - frame.weight) * auto[span] + frame.weight * eye[EMOTIONS.index(frame.label)]
         return out
+    own = heard_per_frame(heard, mode, n, fps)
     if label is not None:
         return (1 - weight) * own + weight * eye[EMOTIONS.index(label)]
     if source is not None:
