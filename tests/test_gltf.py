@@ -212,3 +212,99 @@ def test_fbx_without_blender_says_what_to_install(tmp_path, monkeypatch):
     with pytest.raises(EmogestureError, match="fbx export runs Blender.*apt-get install blender") as err:
         save_fbx(gesture_like(frames=5), tmp_path / "x.fbx")
     assert "\n" not in str(err.value) and not (tmp_path / "x.fbx").exists()
+
+
+def with_face(seq, seed=0):
+    """``seq`` with a random face track."""
+    seq.arkit = np.random.default_rng(seed).uniform(0, 1, (seq.num_frames, 52)).astype(np.float32)
+    return seq
+
+
+def test_the_face_rig_moves_each_blendshape_where_its_name_says():
+    """Every one of the 52 targets moves some of the face, by at most a few centimetres; the lower lip drops
+    for jawOpen and mouthClose lifts it back, the upper lid comes down over the iris for a blink, the left
+    lip corner (+X) rises for mouthSmileLeft and the left iris turns up for eyeLookUpLeft."""
+    from emogesture.export.face_rig import face_rig
+    from emogesture.types import ARKIT_NAMES
+
+    skin = mannequin_skin()
+    on_head = (skin["weights"] * (skin["joints"] == 15)).sum(1) > 0.5
+    triangles = skin["indices"].reshape(-1, 3).astype(np.int64)
+    face = face_rig(skin["positions"], triangles[on_head[triangles].all(1)])
+    head = skin["positions"][on_head]
+    targets, rest = face["targets"], face["positions"]
+    index = {name: i for i, name in enumerate(ARKIT_NAMES)}
+    size = np.linalg.norm(targets, axis=2).max(1)
+    assert targets.shape == (52,) + rest.shape and (size > 0.002).all() and (size < 0.05).all()
+    front = rest[:, 2] > np.quantile(rest[:, 2], 0.5)  # the face lies on the front of the head, not behind it
+    assert rest[front, 2].min() > head[:, 2].max() - 0.03 and np.isfinite(face["normals"]).all()
+    jaw, close = targets[index["jawOpen"]], targets[index["mouthClose"]]
+    dropped = jaw[:, 1] < -0.01
+    assert dropped.sum() > 50 and np.allclose(jaw[dropped] + close[dropped], 0)
+    blink = targets[index["eyeBlinkLeft"]]
+    assert blink[:, 1].min() < -0.01 and (blink[rest[:, 0] < 0] == 0).all()  # the left eye only
+    smile = targets[index["mouthSmileLeft"]]
+    assert smile[rest[:, 0] > 0.015, 1].max() > 0.008 and (smile[rest[:, 0] < 0, 1] <= 1e-9).all()
+    look = targets[index["eyeLookUpLeft"]]
+    assert look[:, 1].max() > 0.004 and (look[rest[:, 0] < 0] == 0).all()
+
+
+def test_a_face_track_makes_a_head_with_52_arkit_morph_targets_that_validates(tmp_path):
+    """With ``arkit`` the glb has a second skinned mesh named face with 52 morph targets named by ARKit
+    (``extras.targetNames``) and a weights channel of 52 values a frame; the Khronos validator finds nothing."""
+    from emogesture.types import ARKIT_NAMES
+
+    seq = with_face(gesture_like(frames=40, seed=8))
+    gltf, _ = sequence_to_gltf(seq)
+    face = next(m for m in gltf["meshes"] if m["name"] == "face")
+    assert face["extras"]["targetNames"] == list(ARKIT_NAMES) and len(face["primitives"][0]["targets"]) == 52
+    node = next(i for i, n in enumerate(gltf["nodes"]) if n.get("mesh") == gltf["meshes"].index(face))
+    channel = next(c for c in gltf["animations"][0]["channels"] if c["target"] == {"node": node, "path": "weights"})
+    output = gltf["accessors"][gltf["animations"][0]["samplers"][channel["sampler"]]["output"]]
+    assert output["count"] == 40 * 52 and node in gltf["scenes"][0]["nodes"]
+    assert all(m["name"] != "face" for m in sequence_to_gltf(gesture_like(frames=40, seed=8))[0]["meshes"])
+    node_bin = _validator()
+    path = save_glb(seq, tmp_path / "face.glb")
+    proc = subprocess.run([node_bin, str(ROOT / "tests" / "node" / "validate_gltf.js"), str(VALIDATOR), str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    issues = json.loads(proc.stdout)["issues"]
+    assert (issues["numErrors"], issues["numWarnings"], issues["numInfos"]) == (0, 0, 0), issues["messages"][:5]
+
+
+def test_three_js_plays_the_face_weights_of_the_npz(tmp_path):
+    """three.js's morphTargetInfluences, by the ARKit names of its morphTargetDictionary, equal the face track
+    at the first, a middle and the last frame."""
+    from emogesture.types import ARKIT_NAMES
+
+    node = _validator()
+    three = ROOT / "build" / "node" / "node_modules" / "three"
+    if not three.is_dir():
+        pytest.skip("three.js is missing (make test installs it)")
+    seq = with_face(gesture_like(frames=45, seed=9), seed=1)
+    path = save_glb(seq, tmp_path / "f.glb")
+    times = ["0", "0.5", "1.4666667"]
+    proc = subprocess.run([node, str(ROOT / "tests" / "node" / "three_pose.mjs"), str(three.parent), str(path), *times],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    got = json.loads(proc.stdout)
+    assert got["morph_mesh"] == "face" and got["skinned"] == 2
+    for t in times:
+        influences = np.array([got["morphs"][t][name] for name in ARKIT_NAMES])
+        assert np.abs(influences - seq.arkit[round(float(t) * 30)]).max() < 1e-5, t
+
+
+@pytest.mark.training
+@pytest.mark.parametrize("fmt", ["glb", "fbx"])
+def test_blender_imports_52_shape_keys_that_play_the_face_track(tmp_path, fmt):
+    """Blender's importer (glb) and the fbx written through Blender read back: the skeleton as before, and 52
+    shape keys by ARKit's names whose animated values equal the npz's weights within 1e-3."""
+    from emogesture.types import ARKIT_NAMES
+
+    seq = with_face(gesture_like(frames=30, seed=10), seed=2)
+    path = export_sequence(seq, tmp_path / "face", (fmt,))[0]
+    first = 0 if fmt == "glb" else 1
+    got = read_in_blender(path, [first, first + 11, first + 29], first, tmp_path, seq)
+    assert got["shape_keys"] == list(ARKIT_NAMES)
+    for frame, values in got["shape_values"].items():
+        assert np.abs(np.array([values[n] for n in ARKIT_NAMES]) - seq.arkit[int(frame) - first]).max() < 1e-3

@@ -9,8 +9,12 @@ The file holds one scene:
   joints are where our forward kinematics puts them), with no rest rotation;
 - the ``mannequin-x`` wooden mannequin (Apache-2.0; 24 k vertices) skinned to it, four joints per vertex
   (its hand joints are our wrists; no vertex follows the jaw or the eyes);
-- one animation at the sequence's frame rate: every joint's rotation and the pelvis's translation, with
-  linear interpolation. Joints the model does not animate keep their rest (identity) rotation.
+- with a face track (``seq.arkit``), a face on the mannequin's head (:mod:`emogesture.export.face_rig`, built
+  here): a second skinned mesh, bound to the head, with Apple's 52 ARKit blendshapes as morph targets named in
+  ``mesh.extras.targetNames`` (as three.js and Blender read them; sparse accessors), coloured by vertex;
+- one animation at the sequence's frame rate: every joint's rotation and the pelvis's translation (and the
+  face's 52 morph weights), with linear interpolation. Joints the model does not animate keep their rest
+  (identity) rotation.
 
 Units are metres, +Y is up and the character faces +Z, as in SMPL-X and glTF.
 """
@@ -27,12 +31,13 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError
+from emogesture.export.face_rig import HEAD, face_rig
 from emogesture.fileio import atomic_output
 from emogesture.motion import JOINT_NAMES, rest_joints, rest_offsets
 from emogesture.motion.rigs import rig_named
 from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
 from emogesture.motion.skeleton import MANNEQUIN_TO_SMPLX, shape_key
-from emogesture.types import SMPLXSequence
+from emogesture.types import ARKIT_NAMES, SMPLXSequence
 
 # glTF constants: component types, buffer-view targets, primitive mode
 _FLOAT, _UBYTE, _USHORT = 5126, 5121, 5123
@@ -118,6 +123,45 @@ class _Buffer:
         self.accessors.append(accessor)
         return len(self.accessors) - 1
 
+    def add_sparse(self, array: np.ndarray) -> int:
+        """A float ``VEC3`` accessor for ``array [N, 3]`` holding only its nonzero rows (a sparse accessor over
+        zeros), with the bounds glTF asks of morph-target positions."""
+        rows = np.flatnonzero(np.abs(array).sum(1) > 0).astype(np.uint16 if len(array) < 65536 else np.uint32)
+        views = []
+        for part in (rows, np.ascontiguousarray(array[rows], np.float32)):
+            self.data += b"\0" * (-len(self.data) % 4)
+            self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": part.nbytes})
+            self.data += part.tobytes()
+            views.append(len(self.views) - 1)
+        self.accessors.append({
+            "componentType": _FLOAT, "count": len(array), "type": "VEC3",
+            "min": array.min(0).astype(float).tolist(), "max": array.max(0).astype(float).tolist(),
+            "sparse": {"count": len(rows), "indices": {"bufferView": views[0],
+                                                      "componentType": _USHORT if rows.dtype == np.uint16 else 5125},
+                       "values": {"bufferView": views[1]}}})
+        return len(self.accessors) - 1
+
+
+def _face_mesh(buf: _Buffer, skin: dict[str, np.ndarray], head_bone: int) -> dict:
+    """The face's mesh (module docstring) in ``buf``, bound to bone ``head_bone``, on the mannequin ``skin``."""
+    on_head = (skin["weights"] * (skin["joints"] == HEAD)).sum(1) > 0.5
+    triangles = skin["indices"].reshape(-1, 3).astype(np.int64)
+    face = face_rig(skin["positions"], triangles[on_head[triangles].all(1)])
+    count = len(face["positions"])
+    attributes = {
+        "POSITION": buf.add(face["positions"], "VEC3", _FLOAT, _ARRAY_BUFFER, bounds=True),
+        "NORMAL": buf.add(face["normals"], "VEC3", _FLOAT, _ARRAY_BUFFER),
+        "COLOR_0": buf.add(face["colors"], "VEC3", _FLOAT, _ARRAY_BUFFER),
+        "JOINTS_0": buf.add(np.tile(np.array([head_bone, 0, 0, 0], np.uint8), (count, 1)), "VEC4", _UBYTE,
+                            _ARRAY_BUFFER),
+        "WEIGHTS_0": buf.add(np.tile(np.array([1, 0, 0, 0], np.float32), (count, 1)), "VEC4", _FLOAT, _ARRAY_BUFFER),
+    }
+    targets = [{"POSITION": buf.add_sparse(t)} for t in face["targets"]]
+    indices = buf.add(face["indices"].astype(np.uint16), "SCALAR", _USHORT, _ELEMENT_ARRAY_BUFFER)
+    return {"name": "face", "primitives": [{"attributes": attributes, "indices": indices, "material": 1,
+                                            "mode": _TRIANGLES, "targets": targets}],
+            "weights": [0.0] * len(ARKIT_NAMES), "extras": {"targetNames": list(ARKIT_NAMES)}}
+
 
 def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture", skeleton: str = "smplx") -> tuple[dict, bytes]:
     """The glTF JSON and its binary buffer for ``seq`` with the bones of ``skeleton`` (module docstring)."""
@@ -160,15 +204,28 @@ def sequence_to_gltf(seq: SMPLXSequence, name: str = "emogesture", skeleton: str
             node["children"] = children
         nodes.append(node)
     nodes.append({"name": "mannequin", "mesh": 0, "skin": 0})  # a root node: the skin alone places it
+    meshes = [{"name": "mannequin", "primitives": [{"attributes": mesh_attributes, "indices": indices,
+                                                    "material": 0, "mode": _TRIANGLES}]}]
+    materials = [{"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": list(WOOD), "metallicFactor": 0.0,
+                                                           "roughnessFactor": 0.7}}]
+    if seq.arkit is not None:
+        if bone_of[HEAD] < 0:
+            raise EmogestureError(f"the {rig.name} skeleton has no head bone to carry the face")
+        meshes.append(_face_mesh(buf, skin, int(bone_of[HEAD])))
+        materials.append({"name": "face", "doubleSided": True,
+                          "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0,
+                                                   "roughnessFactor": 0.6}})
+        nodes.append({"name": "face", "mesh": 1, "skin": 0})
+        weights = np.clip(np.asarray(seq.arkit, np.float32), 0.0, 1.0).reshape(-1)
+        samplers.append({"input": times, "output": buf.add(weights, "SCALAR", _FLOAT), "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": len(nodes) - 1, "path": "weights"}})
     gltf = {
         "asset": {"version": "2.0", "generator": "emogesture"},
         "scene": 0,
-        "scenes": [{"name": name, "nodes": [0, len(nodes) - 1]}],
+        "scenes": [{"name": name, "nodes": [0, *range(len(rig.joints), len(nodes))]}],
         "nodes": nodes,
-        "meshes": [{"name": "mannequin", "primitives": [{"attributes": mesh_attributes, "indices": indices,
-                                                          "material": 0, "mode": _TRIANGLES}]}],
-        "materials": [{"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": list(WOOD), "metallicFactor": 0.0,
-                                                                "roughnessFactor": 0.7}}],
+        "meshes": meshes,
+        "materials": materials,
         "skins": [{"name": rig.name, "joints": list(range(bones)), "skeleton": 0,
                    "inverseBindMatrices": ibm}],
         "animations": [{"name": name, "channels": channels, "samplers": samplers}],
