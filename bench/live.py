@@ -50,7 +50,8 @@ def main() -> None:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "emogesture.cli.main", "live", "--port", str(port)],
+    server = subprocess.Popen([sys.executable, "-m", "emogesture.cli.main", "live", "--port", str(port),
+                               "--max-streams", str(max(args.streams))],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         for _ in range(120):

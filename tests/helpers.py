@@ -1,6 +1,7 @@
-"""Helpers shared by the tests: a small BEAT2-layout folder, the command line, speech-like audio and
-gesture-like motion with its forward kinematics."""
+"""Helpers shared by the tests: a small BEAT2-layout folder, small untrained models, the command line,
+speech-like audio and gesture-like motion with its forward kinematics, the end of a live stream."""
 
+import json
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -72,6 +73,45 @@ def make_root(root: Path, speakers=(1, 2), takes=(1, 2, 65, 66), seed=0) -> list
             splits[name] = "test" if take in (2, 66) else "train"
     write_split_csv(root / "train_test_split.csv", splits)
     return names
+
+
+def write_tiny_runs(folder: Path) -> Path:
+    """Small untrained speech and gesture models written as runs under ``folder`` (``speech``, ``gesture``), with
+    five denoising steps; returns the gesture run (``GesturePipeline.from_run`` takes it). Seeds torch."""
+    from emogesture.checkpoints import save_model
+    from emogesture.config import to_dict
+    from emogesture.data.beat import EMOTIONS
+    from emogesture.data.prepare import PrepareConfig
+    from emogesture.models.generation import GenerationConfig
+    from emogesture.models.gesture import GestureModel, GestureModelConfig
+    from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
+
+    torch.manual_seed(0)
+    scfg = SpeechModelConfig.preset("tiny", num_speakers=2)
+    speech_json = save_model(folder / "speech", "speech", SpeechDisentangler(scfg), scfg, {
+        "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
+        "prepare_config": to_dict(PrepareConfig()), "step": 0})
+    gcfg = GestureModelConfig.preset("tiny")
+    sha = json.loads(speech_json.read_text())["weights_sha256"]
+    save_model(folder / "gesture", "gesture", GestureModel(gcfg), gcfg, {
+        "emotions": list(EMOTIONS), "motion_mean": [0.0] * 282, "motion_std": [0.3] * 282,
+        "features": to_dict(PrepareConfig().features), "variant": "joint", "fps": 30,
+        "speech_model": str(speech_json), "speech_weights_sha256": sha,
+        "emotion_latent_means": {e: [float(i)] * 256 for i, e in enumerate(EMOTIONS)}, "step": 0},
+        generation=GenerationConfig(num_inference_steps=5))
+    return folder / "gesture"
+
+
+def ended(ws) -> tuple[list[dict], dict]:
+    """Ends the live stream on ``ws`` (a websockets sync client): the frames that come until the server is
+    done, and its last reply."""
+    ws.send(json.dumps({"end": True}))
+    frames = []
+    while True:
+        reply = json.loads(ws.recv())
+        frames += reply.get("frames", [])
+        if reply.get("done"):
+            return frames, reply
 
 
 def cli(*args) -> list[str]:

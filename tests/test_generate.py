@@ -14,38 +14,19 @@ import soundfile as sf
 import torch
 
 from emogesture.checkpoints import save_model
-from emogesture.config import to_dict
-from emogesture.data.beat import EMOTIONS
-from emogesture.data.prepare import PrepareConfig
 from emogesture.errors import EmogestureError
-from emogesture.models.generation import GenerationConfig
-from emogesture.models.gesture import GestureModel, GestureModelConfig
-from emogesture.models.speech import SpeechDisentangler, SpeechModelConfig
 from emogesture.eval.seams import seam_jumps
 from emogesture.motion import SkeletonBody
 from emogesture.pipeline.generate import EditRequest, GesturePipeline
 from emogesture.pipeline.postprocess import choose_seam_candidates, largest_joint_jumps, seam_costs, stitch
 
-from helpers import cli_here
+from helpers import cli_here, write_tiny_runs
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("gen")
-    torch.manual_seed(0)
-    scfg = SpeechModelConfig.preset("tiny", num_speakers=2)
-    speech_json = save_model(d / "speech", "speech", SpeechDisentangler(scfg), scfg, {
-        "emotions": list(EMOTIONS), "speakers": [1, 2], "fbank_mean": -9.0, "fbank_std": 5.0,
-        "prepare_config": to_dict(PrepareConfig()), "step": 0})
-    gcfg = GestureModelConfig.preset("tiny")
-    import json
-    sha = json.loads(speech_json.read_text())["weights_sha256"]
-    save_model(d / "gesture", "gesture", GestureModel(gcfg), gcfg, {
-        "emotions": list(EMOTIONS), "motion_mean": [0.0] * 282, "motion_std": [0.3] * 282,
-        "features": to_dict(PrepareConfig().features), "variant": "joint", "fps": 30,
-        "speech_model": str(speech_json), "speech_weights_sha256": sha,
-        "emotion_latent_means": {e: [float(i)] * 256 for i, e in enumerate(EMOTIONS)}, "step": 0},
-        generation=GenerationConfig(num_inference_steps=5))
+    write_tiny_runs(d)
     rng = np.random.default_rng(0)
     t = np.arange(int(65 * 16000)) / 16000
     wave = (0.3 * np.sin(2 * np.pi * 180 * t) * (np.sin(2 * np.pi * 1.5 * t) > 0) + 0.01 * rng.normal(size=t.size))

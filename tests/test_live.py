@@ -20,7 +20,7 @@ import soundfile as sf
 
 from emogesture.assets import DEMO_CLIPS
 
-from helpers import canvas_pixels, headless_chromium, require_chromium
+from helpers import canvas_pixels, ended, headless_chromium, require_chromium
 
 pytestmark = pytest.mark.training
 websockets = pytest.importorskip("websockets")
@@ -72,17 +72,6 @@ def test_a_file_streams_to_one_frame_per_thirtieth_of_a_second_with_smooth_joins
     print(f"\nlargest joint jump: streamed {jump(joints):.4f} m, offline {jump(reference):.4f} m")
     assert jump(joints) <= 1.5 * jump(reference)  # sent as fast as possible: the server catches up in big updates
     assert proc.poll() is None
-
-
-def ended(ws) -> tuple[list[dict], dict]:
-    """Ends the stream on ``ws``: the frames that come until the server is done, and its last reply."""
-    ws.send(json.dumps({"end": True}))
-    frames = []
-    while True:
-        reply = json.loads(ws.recv())
-        frames += reply.get("frames", [])
-        if reply.get("done"):
-            return frames, reply
 
 
 def test_the_mixamo_skeleton_comes_as_quaternions(server):

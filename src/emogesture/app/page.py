@@ -12,10 +12,11 @@ from pathlib import Path
 
 import soundfile as sf
 
+from emogesture.access import check_served, url_host, with_token
 from emogesture.assets import ASSETS
-from emogesture.audio import TARGET_SAMPLE_RATE
+from emogesture.audio import TARGET_SAMPLE_RATE, audio_seconds
 from emogesture.data.beat import EMOTIONS
-from emogesture.errors import EmogestureError
+from emogesture.errors import EmogestureError, InputFileError
 from emogesture.export.fbx import blender_binary
 from emogesture.pipeline.animate import AnimationRequest, animate
 from emogesture.pipeline.generate import GesturePipeline
@@ -27,6 +28,8 @@ VIEWER_HTML = """<div class="emogesture-viewer">
 <div class="status" style="font-size:0.9em;opacity:0.75">the animation appears here</div>
 </div>"""
 EMOTION_CHOICES = ["auto", "own", *EMOTIONS]
+MAX_UPLOAD_MINUTES = 10.0  # the longest recording the page takes (each of speech, emotion, style, neutral)
+MAX_UPLOAD_MB = 150.0  # the largest file it takes: ten minutes of 48-kHz stereo 16-bit WAV, and some
 INTRO = """# emogesture
 Speech to emotional 3D body gestures. Give a recording of someone speaking; get a 30 fps animation whose
 gestures follow the speech and express an emotion: the speech's own (`auto`, `own`), one you choose, one taken
@@ -45,6 +48,11 @@ def _fbx_available() -> bool:
         return False
 
 
+def _duration(seconds: float) -> str:
+    """``seconds`` as a person reads a recording's length: "6.0 s", "12.5 min"."""
+    return f"{seconds:.1f} s" if seconds < 60 else f"{seconds / 60:.1f} min"
+
+
 def perception_rows(report: dict) -> list[list]:
     """The rows of the page's perception table from one recording's perception report."""
     rows = []
@@ -58,12 +66,25 @@ def perception_rows(report: dict) -> list[list]:
 
 class AppSession:
     """What the page's button runs: one pipeline for every request (one request at a time), each request
-    written into a new folder of ``workdir``."""
+    written into a new folder of ``workdir``; recordings longer than ``max_minutes`` are refused."""
 
-    def __init__(self, pipe: GesturePipeline, workdir: Path) -> None:
+    def __init__(self, pipe: GesturePipeline, workdir: Path, max_minutes: float = MAX_UPLOAD_MINUTES) -> None:
         self.pipe, self.workdir = pipe, Path(workdir)
+        self.max_minutes = max_minutes
         self.lock = threading.Lock()
         self.formats = ("npz", "bvh", "glb", "mp4") + (("fbx",) if _fbx_available() else ())
+
+    def check_length(self, path: str, what: str) -> None:
+        """Refuse the recording at ``path`` (the page's ``what``) when it is longer than the server takes; the
+        message names the file by the name it was uploaded under."""
+        name = Path(path).name
+        try:
+            seconds = audio_seconds(path)
+        except InputFileError as e:
+            raise EmogestureError(f"{name} ({what}): {e.problem}") from None
+        if seconds > 60 * self.max_minutes:
+            raise EmogestureError(f"{name} ({what}) is {_duration(seconds)} long; this server takes at most "
+                                  f"{_duration(60 * self.max_minutes)} per recording")
 
     def run(self, speech: str | None, emotion: str, timeline: str, weight: float, emotion_from: str | None,
             style_from: str | None, seed: float, samples: float, skeleton: str,
@@ -72,6 +93,10 @@ class AppSession:
         :class:`EmogestureError` with the message the page shows."""
         if not speech:
             raise EmogestureError("upload or record some speech first")
+        for path, what in ((speech, "speech"), (emotion_from, "emotion from"), (style_from, "style from"),
+                           (neutral_from, "neutral voice")):
+            if path:
+                self.check_length(path, what)
         timeline = (timeline or "").strip()
         label_given = emotion not in ("auto", "own") or emotion_from
         request_emotion = timeline or emotion
@@ -158,20 +183,57 @@ def build_app(session: AppSession):
     return page
 
 
+def page_app(session: AppSession, host: str = "127.0.0.1", port: int = 7860, token: str | None = None,
+             max_upload_mb: float = MAX_UPLOAD_MB):
+    """The page around ``session`` as an ASGI app (Gradio mounted on a FastAPI app) for ``host:port``: the files of
+    the requests' folder servable, uploads of at most ``max_upload_mb`` MB and, with a ``token``, every request
+    behind the gate that asks for it (:class:`~emogesture.app.gate.TokenGate`; the gate wraps the whole app,
+    which Gradio's own ``launch`` would not let it do)."""
+    import gradio as gr
+    from fastapi import FastAPI
+    from starlette.middleware import Middleware
+
+    from emogesture.app.gate import TokenGate
+
+    page = build_app(session)
+    page.queue(default_concurrency_limit=1)
+    gate = [Middleware(TokenGate, token=token, port=port)] if token is not None else []
+    app = FastAPI(middleware=gate, docs_url=None, redoc_url=None, openapi_url=None)
+    return gr.mount_gradio_app(app, page, "/", server_name=host, server_port=port, footer_links=[],
+                               allowed_paths=[str(session.workdir)], show_error=True,
+                               max_file_size=int(max_upload_mb * 1e6), ssr_mode=False)
+
+
 def serve(pipe_factory: Callable[[], GesturePipeline], host: str = "127.0.0.1", port: int = 7860,
-          workdir: str | Path | None = None, quiet: bool = False) -> None:
+          workdir: str | Path | None = None, quiet: bool = False, *, token: str | None = None,
+          max_upload_mb: float = MAX_UPLOAD_MB, max_upload_minutes: float = MAX_UPLOAD_MINUTES) -> None:
     """Build the page on the pipeline ``pipe_factory()`` and serve it on ``host:port`` until interrupted;
-    requests write into ``workdir`` (default: a new temporary folder, removed when the server stops)."""
+    requests write into ``workdir`` (default: a new temporary folder, removed when the server stops).
+    ``token``: the one visitors must give as ``?token=...`` (:mod:`emogesture.access`; needed beyond loopback);
+    uploads of more than ``max_upload_mb`` MB or ``max_upload_minutes`` minutes are refused. Unless ``quiet``,
+    prints the page's URL."""
     if importlib.util.find_spec("gradio") is None:
         raise EmogestureError("emogesture app needs Gradio: pip install 'emogesture[app]' (or pip install gradio)")
+    check_served(host, token)
+    if not max_upload_mb > 0 or not max_upload_minutes > 0:
+        raise EmogestureError(f"uploads of at most {max_upload_mb:g} MB and {max_upload_minutes:g} min: give more "
+                              "than 0 (--max-upload-mb, --max-upload-minutes)")
+    import uvicorn
+
     owned = workdir is None
     work = Path(tempfile.mkdtemp(prefix="emogesture-app-")) if owned else Path(workdir)
     work.mkdir(parents=True, exist_ok=True)
     try:
-        page = build_app(AppSession(pipe_factory(), work))
-        page.queue(default_concurrency_limit=1)
-        page.launch(server_name=host, server_port=port, share=False, allowed_paths=[str(work)], quiet=quiet,
-                    show_error=True, footer_links=[])
+        app = page_app(AppSession(pipe_factory(), work, max_upload_minutes), host, port, token, max_upload_mb)
+        if not quiet:
+            print(f"emogesture app: {with_token(f'http://{url_host(host)}:{port}/', token)}", flush=True)
+        try:
+            uvicorn.run(app, host=host, port=port, log_level="warning")
+        except SystemExit as e:  # uvicorn's way to say it could not bind (its message printed above)
+            if e.code:
+                raise EmogestureError(f"cannot listen on {host}:{port} (the address is taken or not this "
+                                      "machine's)") from None
+            raise
     finally:
         if owned:
             shutil.rmtree(work, ignore_errors=True)

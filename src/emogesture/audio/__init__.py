@@ -16,7 +16,7 @@ from emogesture.audio.fbank import (
     kaldi_window,
     num_fbank_frames,
 )
-from emogesture.audio.io import TARGET_SAMPLE_RATE, check_speech, load_audio, resample
+from emogesture.audio.io import TARGET_SAMPLE_RATE, audio_seconds, check_speech, load_audio, resample
 from emogesture.audio.mfcc import mfcc_from_log_mel
 from emogesture.audio.noise import (NoiseSuppression, digital_silence, dynamic_range_db, fill_digital_silence,
                                    suppress_noise, suppression_strength)
@@ -65,6 +65,7 @@ __all__ = [
     "WINDOW_SECONDS",
     "WINDOW_TYPES",
     "FbankConfig",
+    "audio_seconds",
     "augment_fbank",
     "scramble_segments",
     "check_speech",

@@ -24,7 +24,7 @@ import soundfile as sf
 
 from emogesture.errors import InputFileError
 
-__all__ = ["TARGET_SAMPLE_RATE", "load_audio", "check_speech", "resample"]
+__all__ = ["TARGET_SAMPLE_RATE", "load_audio", "audio_seconds", "check_speech", "resample"]
 
 TARGET_SAMPLE_RATE = 16000
 _SILENCE_PEAK = 1e-4
@@ -192,6 +192,19 @@ def load_audio(
     if remove_mean:
         out = out - out.mean()
     return np.ascontiguousarray(out, dtype=np.float32), target_sr
+
+
+def audio_seconds(path: str | PathLike[str]) -> float:
+    """A recording's length in seconds: from its header when libsndfile reads one that states it, else by
+    decoding it (:func:`load_audio`, whose one-line errors it raises)."""
+    try:
+        info = sf.info(str(path))
+        if info.frames > 0 and info.samplerate > 0:
+            return info.frames / info.samplerate
+    except Exception:  # noqa: BLE001 - not a format libsndfile reads: decode it
+        pass
+    waveform, sr = load_audio(path, remove_mean=False)
+    return waveform.size / sr
 
 
 def check_speech(

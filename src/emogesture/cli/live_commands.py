@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from emogesture.live.server import LiveLimits
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,6 +22,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"], help="as for generate")
     p.add_argument("--workers", type=int, default=None,
                    help="threads drawing the streams' updates (default: one per CPU core, at most 4)")
+    p.add_argument("--token", metavar="SECRET",
+                   help="the token clients must give as ?token=SECRET (needed beyond 127.0.0.1: without it one is "
+                   "made and printed with the page's URL; given on 127.0.0.1, enforced there too)")
+    p.add_argument("--max-streams", type=int, metavar="N", default=None,
+                   help="streams taken at once; one more is told the server is busy (default: 2 per CPU core)")
+    p.add_argument("--max-stream-minutes", type=float, metavar="MIN", default=None,
+                   help="the most audio one stream may carry, in minutes (default 60)")
+    p.add_argument("--idle-timeout", type=float, metavar="S", default=None,
+                   help="seconds without a message from a client before its stream is closed (default 60)")
     p.set_defaults(func=run_live)
 
     p = sub.add_parser("live-client", help="stream a recording to `emogesture live` and report the latency",
@@ -25,6 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "frames came back and how late; optionally save them as a BEAT2 npz.")
     p.add_argument("speech", type=Path, help="speech audio (any format generate reads)")
     p.add_argument("--url", default="ws://127.0.0.1:8765/live", help="the server (default ws://127.0.0.1:8765/live)")
+    p.add_argument("--token", metavar="SECRET", help="the server's token (the one it printed; or ?token= in --url)")
     p.add_argument("--emotion", default="auto", help="auto, own or an emotion label")
     p.add_argument("--neutral-from", type=Path, metavar="WAV",
                    help="a recording of the same speaker speaking without emotion (at least 10 s), sent first: "
@@ -36,9 +50,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run_live_client)
 
 
+def _limits(args: argparse.Namespace) -> LiveLimits:
+    """The server's limits from the options (those left out: the defaults)."""
+    from emogesture.live.server import LiveLimits
+
+    given = {"max_streams": args.max_streams, "max_stream_minutes": args.max_stream_minutes,
+             "idle_timeout": args.idle_timeout}
+    return LiveLimits(**{k: v for k, v in given.items() if v is not None})
+
+
 def run_live(args: argparse.Namespace) -> int:
     import asyncio
 
+    from emogesture.access import server_token, url_host, with_token
     from emogesture.errors import EmogestureError
     from emogesture.live.server import serve_live
     from emogesture.pipeline.generate import GesturePipeline
@@ -46,12 +70,18 @@ def run_live(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise EmogestureError(f"--workers {args.workers}: at least 1")
+    limits = _limits(args)
+    token = server_token(args.host, args.token)
 
     pipe = GesturePipeline.from_run(args.model, args.speech_model, device=resolve_device(args.device),
                                     precision=args.precision)
-    print(f"emogesture live: ws://{args.host}:{args.port}/live (the page: http://{args.host}:{args.port}/)", flush=True)
+    where = f"{url_host(args.host)}:{args.port}"
+    print(f"emogesture live: {with_token(f'ws://{where}/live', token)} (the page: "
+          f"{with_token(f'http://{where}/', token)})", flush=True)
+    print(f"  at most {limits.max_streams} streams at once, {limits.max_stream_minutes:g} min of audio per stream, "
+          f"closed after {limits.idle_timeout:g} s without a message; GET /health tells the load", flush=True)
     try:
-        asyncio.run(serve_live(pipe, args.host, args.port, workers=args.workers))
+        asyncio.run(serve_live(pipe, args.host, args.port, workers=args.workers, limits=limits, token=token))
     except OSError as e:
         raise EmogestureError(f"cannot listen on {args.host}:{args.port} ({e.strerror or e})") from None
     return 0
@@ -71,11 +101,12 @@ def run_live_client(args: argparse.Namespace) -> int:
         check_output(args.out, args.overwrite)
     try:
         result = asyncio.run(stream_file(args.url, args.speech, emotion=args.emotion, chunk_seconds=args.chunk,
-                                         realtime=not args.fast, neutral_from=args.neutral_from))
+                                         realtime=not args.fast, neutral_from=args.neutral_from, token=args.token))
     except OSError as e:
+        from emogesture.access import without_token
         from emogesture.errors import EmogestureError
 
-        raise EmogestureError(f"{args.url}: cannot connect ({e.strerror or e})") from None
+        raise EmogestureError(f"{without_token(args.url)}: cannot connect ({e.strerror or e})") from None
     for error in result.errors:
         print(f"server: {error}")
     if result.neutral_reference is not None:

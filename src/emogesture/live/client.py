@@ -5,6 +5,7 @@ Example::
 
     result = asyncio.run(stream_file("ws://127.0.0.1:8765/live", "talk.wav", emotion="anger"))
     result = asyncio.run(stream_file(url, "talk.wav", emotion="own", neutral_from="calm.wav"))
+    result = asyncio.run(stream_file("ws://gpu-box:8765/live", "talk.wav", token="the printed token"))
     print(len(result.poses), np.median(result.latency))
 """
 
@@ -18,6 +19,7 @@ from os import PathLike
 
 import numpy as np
 
+from emogesture.access import with_token, without_token
 from emogesture.audio import TARGET_SAMPLE_RATE, load_audio
 from emogesture.errors import EmogestureError
 
@@ -44,15 +46,45 @@ def _pcm(path: str | PathLike[str]) -> np.ndarray:
 
 async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "auto", chunk_seconds: float = 0.1,
                       realtime: bool = True, changes: dict[float, str] | None = None, seed: int = 0,
-                      neutral_from: str | PathLike[str] | None = None, face: bool = False) -> LiveResult:
+                      neutral_from: str | PathLike[str] | None = None, face: bool = False,
+                      token: str | None = None) -> LiveResult:
     """Send ``path`` to the server at ``url`` in ``chunk_seconds`` pieces (at the pace of speech when
     ``realtime``), changing the emotion at the seconds given in ``changes`` (``{15.0: "sadness"}``).
 
     ``neutral_from``: a recording of the same speaker speaking without emotion, sent first (as fast as it goes)
     between ``{"neutral": "start"}`` and ``{"neutral": "stop"}``; the speech follows once the server has made
     its reference, and the frames of the neutral recording are left out of the result. ``face``: ask for the
-    face too (each frame's ``arkit``)."""
+    face too (each frame's ``arkit``). ``token``: the server's token (also accepted inside ``url`` as
+    ``?token=...``). A server that refuses the stream or closes it (busy, a wrong token, a limit) is an
+    :class:`EmogestureError` saying why."""
+    from websockets.exceptions import ConnectionClosedError, InvalidStatus
+
+    url = with_token(url, token)
+    shown = without_token(url)  # for messages: the token is not repeated
+    try:
+        return await _stream(url, path, emotion=emotion, chunk_seconds=chunk_seconds, realtime=realtime,
+                             changes=changes, seed=seed, neutral_from=neutral_from, face=face)
+    except InvalidStatus as e:
+        status = e.response.status_code
+        hint = " (a wrong or missing token?)" if status == 403 else ""
+        raise EmogestureError(f"{shown}: the server refused the stream: HTTP {status}{hint}") from None
+    except ConnectionClosedError as e:
+        reason = e.rcvd.reason if e.rcvd is not None and e.rcvd.reason else "the connection was lost"
+        raise EmogestureError(f"{shown}: the server closed the stream: {reason}") from None
+    except _Problem as e:
+        raise EmogestureError(f"{shown}: {e}") from None
+
+
+class _Problem(Exception):
+    """What went wrong with a stream, said with the server's URL by :func:`stream_file`."""
+
+
+async def _stream(url: str, path: str | PathLike[str], *, emotion: str, chunk_seconds: float, realtime: bool,
+                  changes: dict[float, str] | None, seed: int, neutral_from: str | PathLike[str] | None,
+                  face: bool) -> LiveResult:
+    """:func:`stream_file` on a URL that holds the token, if any."""
     from websockets.asyncio.client import connect
+    from websockets.exceptions import ConnectionClosedError
 
     pcm = _pcm(path)
     lead = np.zeros(0, "<i2")
@@ -76,7 +108,7 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
                                   **({"face": True} if face else {})}))
         hello = json.loads(await ws.recv())
         if "error" in hello:
-            raise EmogestureError(f"{url}: {hello['error']}")
+            raise _Problem(hello["error"])
 
         async def send() -> None:
             if len(lead):
@@ -103,24 +135,31 @@ async def stream_file(url: str, path: str | PathLike[str], *, emotion: str = "au
             await ws.send(json.dumps({"end": True}))
 
         sender = asyncio.create_task(send())
-        async for message in ws:
-            reply = json.loads(message)
-            now = time.perf_counter()
-            if "error" in reply:
-                errors.append(reply["error"])
-            if reply.get("neutral_reference"):
-                reference = reply["neutral_reference"]
-            if "neutral_reference" in reply or "error" in reply:
-                referenced.set()  # made, or could not be: the speech goes on either way
-            for frame in reply.get("frames", []):
-                frames[frame["frame"]] = frame
-                arrived[frame["frame"]] = now
-            if reply.get("done"):
-                break
+        try:
+            async for message in ws:
+                reply = json.loads(message)
+                now = time.perf_counter()
+                if "error" in reply:
+                    errors.append(reply["error"])
+                if reply.get("neutral_reference"):
+                    reference = reply["neutral_reference"]
+                if "neutral_reference" in reply or "error" in reply:
+                    referenced.set()  # made, or could not be: the speech goes on either way
+                for frame in reply.get("frames", []):
+                    frames[frame["frame"]] = frame
+                    arrived[frame["frame"]] = now
+                if reply.get("done"):
+                    break
+        except BaseException as e:  # the server closed the stream (a limit) or the connection was lost
+            sender.cancel()
+            await asyncio.gather(sender, return_exceptions=True)
+            if isinstance(e, ConnectionClosedError) and errors:
+                raise _Problem(f"the server closed the stream: {errors[-1]}") from None
+            raise
         await sender
     order = sorted(frames)
     if order != list(range(len(order))):
-        raise EmogestureError(f"{url}: frames arrived with gaps")
+        raise _Problem("frames arrived with gaps")
     order = order[skip:]
     index = np.minimum((np.array(order) / 30.0 * TARGET_SAMPLE_RATE).astype(int), len(pcm))
     latency = np.array([arrived[i] for i in order]) - sent_at[index]

@@ -1,12 +1,22 @@
 """``emogesture live``: a WebSocket server that animates speech as it arrives (:class:`GestureStream`).
 
+Who may connect (:mod:`emogesture.access`): on a loopback address (127.0.0.1, ::1, localhost) anyone on this
+machine; on any other address, or when a token is given, only clients that give the server's token as
+``?token=...`` on the URL of the page, of ``/health`` and of ``/live`` (the page passes its own on; a browser
+also gets it as a cookie); without it the answer is HTTP 403. A browser's WebSocket from another site's page
+(its ``Origin`` another host or port than the server's) is refused with 403 too. ``GET /health``
+answers ``{"streams": n, "capacity": N}``: the streams open and the most taken at once.
+
 Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
 
+0. A stream beyond the server's capacity (``--max-streams``) gets ``{"error": "server busy: ..."}`` and is
+   closed with code 1013 (try again later); the streams running go on undisturbed.
 1. The client's first message: ``{"sample_rate": 16000, "emotion": "auto"}``; also optional
    ``emotion_weight`` (0-1, with a label), ``seed`` (integer), ``skeleton`` (``smplx`` or ``mixamo``),
    ``style_from`` (a training speaker's BEAT id: gesture in that speaker's style) and ``face`` (true: a face
    too). The server answers
-   ``{"ready": true, "fps": 30, "skeleton": ..., "bones": [names], "speakers": [ids for style_from]}``.
+   ``{"ready": true, "fps": 30, "skeleton": ..., "bones": [names], "speakers": [ids for style_from],
+   "capacity": N, "limits": {"message_bytes": b, "stream_minutes": m, "idle_s": s}}``.
 2. Then binary messages: little-endian 16-bit mono PCM at that rate, in chunks of any size.
 3. At any time, text messages ``{"emotion": "anger", "emotion_weight": 0.8}`` change the emotion from the
    next update on (about every 0.25 s of audio); ``{"end": true}`` flushes the last frames, the server sends
@@ -26,6 +36,11 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
 5. A message the server cannot use (malformed JSON, an unknown key or emotion, text where audio is
    expected, a wrong sample rate) gets ``{"error": "one line"}``; a bad first message also closes the
    connection (code 1008). Other streams never notice.
+6. Limits (:class:`LiveLimits`), each told in one ``{"error": ...}`` line before the close: a message over
+   :data:`MAX_MESSAGE_BYTES` (4 MiB: two minutes of 16-kHz audio) closes the stream with code 1009; more
+   audio than ``--max-stream-minutes`` (default 60) in one stream, or no message at all for
+   ``--idle-timeout`` seconds (default 60; not counted while the server makes a neutral reference), close
+   it with code 1008.
 
 Streams share one pipeline; their updates run on a few worker threads (one per core, at most four; one
 stream's updates one after another), while each connection's messages are read as they arrive. A stream
@@ -39,13 +54,16 @@ import asyncio
 import json
 import os
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 from functools import partial
 from http import HTTPStatus
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import numpy as np
 import torch
 
+from emogesture.access import FORBIDDEN_TEXT, FOREIGN_ORIGIN_TEXT, TokenCheck, check_served, same_origin
 from emogesture.assets import ASSETS
 from emogesture.audio import TARGET_SAMPLE_RATE, resample
 from emogesture.errors import EmogestureError
@@ -61,6 +79,59 @@ PAGE = Path(__file__).with_name("page.html")
 RATES = (8000, 48000)
 FIRST_KEYS = {"sample_rate", "emotion", "emotion_weight", "seed", "skeleton", "style_from", "face"}
 NEUTRAL_SECONDS = 60.0  # the most of a neutral recording kept (the least: neutral_reference.MIN_SECONDS)
+MAX_MESSAGE_BYTES = 4 * 2 ** 20  # the largest message a client may send: two minutes of 16-kHz audio
+MAX_STREAM_MINUTES = 60.0  # the most audio one stream may carry
+IDLE_TIMEOUT = 60.0  # seconds without a message from the client before its stream is closed
+#: streams taken at once per CPU core by default: four on two cores keep the median latency under 0.4 s
+#: (bench/results/live.md)
+STREAMS_PER_CORE = 2
+BUSY, POLICY, TOO_BIG = 1013, 1008, 1009  # close codes: try again later, policy violation, message too big
+
+
+def default_max_streams() -> int:
+    """Streams taken at once: :data:`STREAMS_PER_CORE` per CPU core, at least one."""
+    return max(1, STREAMS_PER_CORE * (os.cpu_count() or 1))
+
+
+@dataclass(frozen=True)
+class LiveLimits:
+    """What the server takes (module docstring, points 0 and 6)."""
+
+    max_streams: int = field(default_factory=default_max_streams)
+    max_stream_minutes: float = MAX_STREAM_MINUTES
+    idle_timeout: float = IDLE_TIMEOUT
+    max_message_bytes: int = MAX_MESSAGE_BYTES
+
+    def __post_init__(self) -> None:
+        if isinstance(self.max_streams, bool) or not isinstance(self.max_streams, int) or self.max_streams < 1:
+            raise EmogestureError(f"at most {self.max_streams} streams at once: give at least 1 (--max-streams)")
+        if not self.max_stream_minutes > 0:
+            raise EmogestureError(f"{self.max_stream_minutes} minutes per stream: give more than 0 "
+                                  "(--max-stream-minutes)")
+        if not self.idle_timeout > 0:
+            raise EmogestureError(f"an idle timeout of {self.idle_timeout} s: give more than 0 (--idle-timeout)")
+        if self.max_message_bytes < 1024:
+            raise EmogestureError(f"messages of at most {self.max_message_bytes} bytes: give at least 1024")
+
+    def announced(self) -> dict:
+        """The limits as the ready message states them."""
+        return {"message_bytes": self.max_message_bytes, "stream_minutes": self.max_stream_minutes,
+                "idle_s": self.idle_timeout}
+
+    def stream_bytes(self, rate: int) -> int:
+        """The most bytes of audio one stream at ``rate`` may carry."""
+        return int(2 * rate * 60 * self.max_stream_minutes)
+
+    def busy(self) -> str:
+        n = self.max_streams
+        return f"server busy: {n} {'stream' if n == 1 else 'streams'} at once, the most it takes; try again later"
+
+    def idle(self) -> str:
+        return f"no message for {self.idle_timeout:g} s: the stream is closed (send audio, or {{\"end\": true}})"
+
+    def too_long(self) -> str:
+        return (f"stream too long: more than {self.max_stream_minutes:g} min of audio, the most one stream takes; "
+                "start a new stream")
 
 
 def speaker_styles(pipe: GesturePipeline) -> dict[int, np.ndarray]:
@@ -129,40 +200,94 @@ class LiveServer:
     updates always one after another; the model's weights are held, never swapped, so updates of different
     streams may run at once)."""
 
-    def __init__(self, pipe: GesturePipeline, workers: int = 1) -> None:
+    def __init__(self, pipe: GesturePipeline, workers: int = 1, limits: LiveLimits | None = None) -> None:
         self.pipe = pipe
         self.worker = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="emogesture-live")
-        self.streams = 0
+        self.limits = limits or LiveLimits()
+        self.streams = 0  # connections admitted and not yet closed
+
+    def health(self) -> dict:
+        """``GET /health``: the streams open and the most taken at once."""
+        return {"streams": self.streams, "capacity": self.limits.max_streams}
 
     async def handle(self, connection) -> None:
+        """One connection: admitted when the server has room (else told it is busy), then its stream."""
+        from websockets.exceptions import ConnectionClosed
+
+        if self.streams >= self.limits.max_streams:
+            await self._close(connection, BUSY, self.limits.busy())
+            return
+        self.streams += 1
         try:
-            first = json.loads(await connection.recv())
+            await self._open(connection)
+        except ConnectionClosed:
+            pass  # the client left
+        finally:
+            self.streams -= 1
+
+    async def _open(self, connection) -> None:
+        """Read the first message (a bad one, or none within the idle timeout, closes the connection), answer
+        ready, and run the stream."""
+        try:
+            first = json.loads(await asyncio.wait_for(connection.recv(), self.limits.idle_timeout))
             stream, rate, skeleton = open_stream(self.pipe, first)
+        except TimeoutError:
+            await self._close(connection, POLICY, self.limits.idle())
+            return
         except (ValueError, TypeError, EmogestureError) as e:
             message = str(e) if isinstance(e, EmogestureError) else f"the first message is not JSON ({e})"
-            await connection.send(json.dumps({"error": message}))
-            await connection.close(1008, message[:120])
+            await self._close(connection, POLICY, message)
             return
         rig = rig_named(skeleton)
         await connection.send(json.dumps({"ready": True, "fps": self.pipe.fps, "skeleton": skeleton,
-                                          "bones": list(rig.names), "speakers": sorted(speaker_styles(self.pipe))}))
-        self.streams += 1
+                                          "bones": list(rig.names), "speakers": sorted(speaker_styles(self.pipe)),
+                                          "capacity": self.limits.max_streams, "limits": self.limits.announced()}))
+        await self._run(connection, stream, rate, skeleton)
+
+    @staticmethod
+    async def _close(connection, code: int, message: str) -> None:
+        """Tell the client why in one ``{"error": ...}`` line, then close with ``code``; a client already
+        gone is let go."""
+        from websockets.exceptions import ConnectionClosed
+
         try:
-            await self._run(connection, stream, rate, skeleton)
-        finally:
-            self.streams -= 1
+            await connection.send(json.dumps({"error": message}))
+            await connection.close(code, message.encode()[:120].decode(errors="ignore"))
+        except ConnectionClosed:
+            pass
+
+    async def _receive(self, connection, state: dict) -> str | bytes | None:
+        """The client's next message; None when the client left, or when it was silent for the idle timeout
+        (then ``state["stop"]`` says so; a neutral reference being made for it is no silence)."""
+        from websockets.exceptions import ConnectionClosed
+
+        while True:
+            try:
+                return await asyncio.wait_for(connection.recv(), self.limits.idle_timeout)
+            except TimeoutError:
+                if not state["tasks"]:
+                    state["stop"] = (POLICY, self.limits.idle())
+                    return None
+            except ConnectionClosed:
+                return None
 
     async def _run(self, connection, stream: GestureStream, rate: int, skeleton: str) -> None:
         """Read the client's messages as they come (so the connection never stalls), and turn the audio that
         waits into frames whenever the worker is free: one update for all of it when the stream fell behind."""
         loop = asyncio.get_running_loop()
-        audio, state = bytearray(), {"end": False, "closed": False, "neutral": None, "tasks": set()}
+        audio = bytearray()
+        state = {"end": False, "closed": False, "neutral": None, "tasks": set(), "stop": None, "received": 0}
+        most = self.limits.stream_bytes(rate)
         wake = asyncio.Event()
 
         async def read() -> None:
             try:
-                async for message in connection:
+                while (message := await self._receive(connection, state)) is not None:
                     if isinstance(message, bytes):
+                        state["received"] += len(message)
+                        if state["received"] > most:
+                            state["stop"] = (POLICY, self.limits.too_long())
+                            return
                         audio.extend(message)
                         if state["neutral"] is not None and len(state["neutral"]) < 2 * rate * NEUTRAL_SECONDS:
                             state["neutral"].extend(message)
@@ -186,6 +311,9 @@ class LiveServer:
             while True:
                 await wake.wait()
                 wake.clear()
+                if state["stop"] is not None:
+                    await self._close(connection, *state["stop"])
+                    return
                 whole = len(audio) // 2 * 2
                 if whole:
                     samples = np.frombuffer(bytes(audio[:whole]), "<i2").astype(np.float32) / 32768.0
@@ -279,13 +407,59 @@ def default_workers() -> int:
     return max(1, min(4, os.cpu_count() or 1))
 
 
+def _respond(connection, kind: str, body: bytes, cookie: str | None = None):
+    """An HTTP 200 response with ``body`` of content type ``kind`` (and a ``Set-Cookie``)."""
+    response = connection.respond(HTTPStatus.OK, "")
+    response.body = body
+    for key, value in (("Content-Type", kind), ("Content-Length", str(len(body)))):
+        del response.headers[key]  # a multi-valued mapping: replace, do not add
+        response.headers[key] = value
+    if cookie is not None:
+        response.headers["Set-Cookie"] = cookie
+    return response
+
+
+def _header(request, name: str) -> str | None:
+    """A request header's value (several joined as cookies are), None when absent."""
+    values = request.headers.get_all(name)
+    return "; ".join(values) if values else None
+
+
+def _explain_too_big(protocol, limit: int) -> None:
+    """Make ``protocol`` (websockets' Sans-I/O connection) send the client one ``{"error": ...}`` line before
+    the close (code 1009) that answers a message over ``limit`` bytes, as every other limit does."""
+    fail = protocol.fail
+    message = json.dumps({"error": f"message too big: more than {limit} bytes ({limit / 2 ** 20:.3g} MiB); send "
+                                   "the audio in smaller messages"})
+
+    def fail_explained(code: int, reason: str = "") -> None:
+        if code == TOO_BIG and protocol.state.name == "OPEN":
+            protocol.send_text(message.encode())
+        fail(code, reason)
+
+    protocol.fail = fail_explained
+
+
+def _connection(protocol, *args, limit: int, **kwargs):
+    """websockets' server connection, its messages over ``limit`` bytes explained (:func:`_explain_too_big`)."""
+    from websockets.asyncio.server import ServerConnection
+
+    _explain_too_big(protocol, limit)
+    return ServerConnection(protocol, *args, **kwargs)
+
+
 async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int = 8765,
-                     ready: asyncio.Future | None = None, workers: int | None = None) -> None:
-    """Serve ``/live`` (and the page at ``/``) on ``host:port`` until cancelled, with ``workers`` update
-    threads (None: :func:`default_workers`)."""
+                     ready: asyncio.Future | None = None, workers: int | None = None, *,
+                     limits: LiveLimits | None = None, token: str | None = None) -> None:
+    """Serve ``/live``, the page at ``/`` and ``/health`` on ``host:port`` until cancelled, with ``workers``
+    update threads (None: :func:`default_workers`), within ``limits`` (None: :class:`LiveLimits`' defaults).
+    ``token``: the one clients must give (module docstring); needed beyond loopback."""
     from websockets.asyncio.server import serve
 
-    server = LiveServer(pipe, workers or default_workers())
+    check_served(host, token)
+    limits = limits or LiveLimits()
+    server = LiveServer(pipe, workers or default_workers(), limits)
+    tokens = TokenCheck(token, port)
     rest = SMPLXSequence(poses=np.zeros((1, 55, 3), np.float32), trans=np.zeros((1, 3), np.float32))
     files = {  # path -> (content type, body): the page, its mannequin code and the mannequin at rest
         "/": ("text/html; charset=utf-8", PAGE.read_bytes()),
@@ -294,19 +468,21 @@ async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int =
     }
 
     def http(connection, request):
-        if request.path == "/live":
+        url = urlsplit(request.path)
+        if not tokens.allows(url.query, _header(request, "Cookie")):
+            return connection.respond(HTTPStatus.FORBIDDEN, FORBIDDEN_TEXT)
+        if url.path == "/live":
+            if not same_origin(_header(request, "Origin"), _header(request, "Host")):
+                return connection.respond(HTTPStatus.FORBIDDEN, FOREIGN_ORIGIN_TEXT)
             return None  # the WebSocket handshake goes on
-        if request.path in files:
-            kind, body = files[request.path]
-            response = connection.respond(HTTPStatus.OK, "")
-            response.body = body
-            for key, value in (("Content-Type", kind), ("Content-Length", str(len(body)))):
-                del response.headers[key]  # a multi-valued mapping: replace, do not add
-                response.headers[key] = value
-            return response
+        if url.path == "/health":
+            return _respond(connection, "application/json", json.dumps(server.health()).encode())
+        if url.path in files:
+            return _respond(connection, *files[url.path], tokens.set_cookie(url.query))
         return connection.respond(HTTPStatus.NOT_FOUND, "not found: the stream is at /live, the page at /\n")
 
-    async with serve(server.handle, host, port, process_request=http, max_size=4 * 2 ** 20) as running:
+    async with serve(server.handle, host, port, process_request=http, max_size=limits.max_message_bytes,
+                     create_connection=partial(_connection, limit=limits.max_message_bytes)) as running:
         if ready is not None:
             ready.set_result(running)
         await asyncio.get_running_loop().create_future()
