@@ -217,6 +217,22 @@ rebuilds a bundle from the synthetic corpus alone.
 """
 
 
+def real_motion_paragraph(path: Path) -> str:
+    """How the model moves on the packaged real read speech (`motion_realism.py`'s report, when there): its
+    wrists' speed and how far their speed follows the voice's onsets, against the corpus's."""
+    if not path.is_file():
+        return ""
+    stats = json.loads(path.read_text())
+    real, corpus = stats["model, real speech"], stats["corpus"]
+    follows = ("follows the voice's onsets" if real["onset_coupling"] >= 0.5 * corpus["onset_coupling"] else
+               "follows the voice's onsets only weakly (on a real voice the strokes do not yet land on\n  its syllables "
+               "as they do on the corpus's)")
+    return (f"- **On a real voice** (the packaged real read speech, `--emotion auto`, seed 0;\n"
+            f"  `experiments/reports/motion_realism/`): the wrists move at {real['wrist_speed_mean']:.2f} m/s (the "
+            f"corpus's {corpus['wrist_speed_mean']:.2f};\n  people talking about 0.55), and their speed {follows}; "
+            f"onset coupling {real['onset_coupling']:.3f},\n  the corpus's {corpus['onset_coupling']:.3f}.\n")
+
+
 def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     bundle, report = Path(bundle), Path(report)
     real = json.loads((report / "real" / "real_speech.json").read_text())
@@ -303,6 +319,7 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
                  "heard the same way (the telephone row below; no real telephone recording with a known emotion "
                  "was at hand to check); it changes what is heard, not the trust or the motion.")
     seams_text = seams_paragraph(gesture["checks"])
+    real_motion_text = real_motion_paragraph(report.parent / "motion_realism" / "motion_realism.json")
     level_text = level_paragraph(shift["rows"])
     ravdess_text = ravdess_section(report / "ravdess_test.json")
     trained_on = ("the project's **synthetic corpus** and, for the read-out that hears emotion in a real voice (the "
@@ -408,8 +425,8 @@ The full reports: `experiments/reports/bundled_model/` in the source repository.
 {level_text}
 {rhythm_text}
 {seams_text}
-- **Motion.** The gestures are those of a procedural corpus: upper body and fingers (legs and face
-  stay at rest); the body turns and leans but does not travel. Since corpus version 3 the training motion turns at speeds within
+{real_motion_text}- **Motion.** The gestures are those of a procedural corpus: upper body and fingers (the legs stay at rest;
+  the face comes from `--face`, not from this model); the body turns and leans but does not travel. Since corpus version 3 the training motion turns at speeds within
   the range of real conversational motion capture, joint by joint. This model's hands move at
   {ours['Speed']:.2f} m/s (the ground truth's {gt['Speed']:.2f}), and its wrists turn at {wrist_ratio:.0%} of the
   ground truth's angular speed ({wrists}; two real BEAT takes: 0.023–0.038 / 0.032–0.041;

@@ -65,10 +65,10 @@ timed() {  # times.txt name command... : runs a training step and appends its wa
     echo "$name: $(( $(date +%s) - start )) s" >> "$times"
 }
 
-train_gesture() {  # OUT CACHE SPEECH TIMES NAME : the recipe's gesture model (2400 steps), unless OUT has it
+train_gesture() {  # OUT CACHE SPEECH TIMES NAME : the recipe's gesture model (3600 steps), unless OUT has it
     local out=$1 cache=$2 speech=$3 times=$4 name=$5
-    grep -qs '"step": 2400' "$out/model.json" || timed "$times" "$name" $EG train gesture --data "$cache" \
-        --speech "$speech" --out "$out" --steps 2400 --checkpoint-every 200 --quiet
+    grep -qs '"step": 3600' "$out/model.json" || timed "$times" "$name" $EG train gesture --data "$cache" \
+        --speech "$speech" --out "$out" --steps 3600 --checkpoint-every 200 --quiet
 }
 
 speech_second_stage() {  # OUT FIRST CACHE TIMES [option ...] : the recipe's second speech stage, 700 steps on

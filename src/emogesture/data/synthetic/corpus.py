@@ -43,8 +43,11 @@ from emogesture.errors import ConfigError, EmogestureError
 #: speaker id (30 voices; two voice families only among the held-out actors; speakers 1-14 as before);
 #: 5: hands that curl and take shapes, a body that turns toward listeners, forearms toward the midline and
 #: hands together, fewer strokes with jittered apexes, holds and rests; 6: arms that hang nearer the body,
-#: a wider turn toward the listeners, stroke apexes a little further off their onsets
-CORPUS_VERSION = 6
+#: a wider turn toward the listeners, stroke apexes a little further off their onsets; 9: livelier strokes
+#: (more, larger, the forearm carrying the beat) whose apexes keep nearer their onsets, each slowed only as
+#: much as keeps its hand below MAX_HAND_SPEED, so the emotions keep their differences in speed; 10: version 9
+#: with the upper arm's share of a stroke a little smaller (its shoulder turns within the real range)
+CORPUS_VERSION = 10
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"

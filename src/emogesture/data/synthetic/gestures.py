@@ -47,23 +47,28 @@ from emogesture.data.synthetic.factors import POSTURE_KEYS, Emotion, Speaker, Ta
 from emogesture.types import FPS, NUM_JOINTS
 
 ARM_DOWN = 1.30  # rad about Z that brings the T-pose arms down beside the body (hands near the thighs)
-REST = dict(flex=0.0, abduct=0.0, elbow=0.3)
-MAX_ADDUCTION = 0.03  # rad the hanging arm may come closer to the body than at rest
-MAX_ABDUCTION, MAX_FLEX = 0.8, 1.35  # rad: how far the arm may rise sideways and forwards (hands below the head)
-STROKE_WIDTH = 0.16  # s, rise half-width of a neutral stroke (return is 1.4× longer)
-STROKE_GAP = 0.6  # s, minimum spacing of neutral strokes
-P_REST = 0.2  # share of chosen stroke times left out: the hands rest or hold
-APEX_JITTER = 0.13  # s, sd of a stroke's apex about its onset
+REST = dict(flex=0.0, abduct=0.0, elbow=0.2)
+MAX_ADDUCTION = 0.0  # rad the hanging arm may come closer to the body than at rest
+MAX_ABDUCTION, MAX_FLEX = 0.8, 1.25  # rad: how far the arm may rise sideways and forwards (hands below the head)
+MAX_ELBOW = 1.9  # rad: the most the elbow bends
+MAX_ELBOW_SPEED = 6.5  # rad/s the elbow turns at most
+RAISED_REACH = 1.6  # rad less elbow bend per rad the arm rises beyond 0.7 rad forward or 0.4 rad sideways (hands below the head)
+STROKE_WIDTH = 0.13  # s, rise half-width of a neutral stroke (return is 1.4× longer)
+STROKE_GAP = 0.38  # s, minimum spacing of neutral strokes
+P_REST = 0.1  # share of chosen stroke times left out: the hands rest or hold
+APEX_JITTER = 0.11  # s, sd of a stroke's apex about its onset
 MAX_HOLD = 0.3  # s, longest hold at a stroke's apex
 P_TOGETHER = 0.12  # share of strokes that bring both hands together in front of the body
 INWARD_TALK = 0.25  # rad the forearms turn in toward the midline while talking (times the elbow's bend)
 LISTENER_YAW = 0.24  # rad: the imagined listeners sit within this turn of straight ahead
 P_TURN = 0.5  # chance that a phrase is addressed to another listener
 ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
-STROKE_AMPLITUDE = 0.7  # rad scale of a neutral stroke
-MAX_STROKE = 1.0  # rad: the largest stroke
-MAX_STROKE_SPEED = 8.0  # rad/s: a stroke's amplitude over its rise's half-width at most (about 5 rad/s at its fastest)
+STROKE_AMPLITUDE = 1.1  # rad scale of a neutral stroke
+MAX_STROKE = 1.8  # rad: the largest stroke
+MAX_HAND_SPEED = 3.5  # m/s: a stroke's rise is slowed until the hand's fastest travel stays below this
+FOREARM, ARM = 0.28, 0.55  # m: the hand's distance from the elbow and from the shoulder (lever of each channel)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
+STROKE_GAIN = dict(elbow=1.6, flex=0.68, abduct=0.68)  # a stroke's extent per channel beyond its direction (the forearm carries the beat)
 # the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
 IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
@@ -201,7 +206,10 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
             direction = dict(elbow=rng.uniform(0.5, 1.0), flex=rng.uniform(0.0, 0.5), abduct=rng.normal(0, 0.3),
                              wflex=rng.normal(0, 0.35), wdev=rng.normal(0, 0.2), twist=rng.normal(0, 0.35),
                              inward=rng.uniform(0.0, 0.3))
-        floor = a_k / MAX_STROKE_SPEED  # a large stroke takes its time: the hand stays below about 4 m/s
+        # a large stroke takes its time: a Gaussian rise of extent d (m) over half-width w peaks at 0.61 d / w
+        reach = a_k * (FOREARM * STROKE_GAIN["elbow"] * abs(direction["elbow"])
+                       + ARM * STROKE_GAIN["flex"] * float(np.hypot(direction["flex"], direction["abduct"])))
+        floor = 0.61 * reach / MAX_HAND_SPEED
         w = slow * np.where(t < apex, max(rise, floor), max(fall, 1.4 * floor))
         bump = np.exp(-0.5 * (np.maximum(t - apex - hold, 0.0) + np.minimum(t - apex, 0.0)) ** 2 / w ** 2)
         shape = "open" if kind >= P_TOGETHER and kind < P_TOGETHER + P_REACH and rng.uniform() < 0.6 else \
@@ -212,7 +220,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
                                     + np.minimum(t - apex + 0.05, 0.0) / (1.5 * rise)) ** 2)
         for side in sides:
             for k, v in direction.items():
-                arms[side][k] += a_k * v * bump
+                arms[side][k] += a_k * v * STROKE_GAIN.get(k, 1.0) * bump
             hands.add_shape(fingers[side], shape, shape_bump, float(np.clip(a_k / STROKE_AMPLITUDE, 0.3, 1.0)))
         body["head_pitch"] += 0.12 * a_k * rng.uniform(0.0, 1.0) * bump
         body["lean"] += 0.04 * a_k * bump
@@ -223,6 +231,15 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
         strokes.append(Stroke(apex, max(0.0, apex - 2 * rise), min(t[-1] if n else 0.0, apex + hold + 2 * fall),
                               round(score, 3), hand))
     return _to_poses(body, arms, fingers, root, energy, rng), strokes
+
+
+def rate_limited(x: np.ndarray, step: float) -> np.ndarray:
+    """``x`` ``[T]`` followed with at most ``step`` change per frame."""
+    out = np.empty_like(x)
+    out[0] = x[0]
+    for i in range(1, len(x)):
+        out[i] = out[i - 1] + min(max(x[i] - out[i - 1], -step), step)
+    return out
 
 
 def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dict, energy: np.ndarray,
@@ -263,7 +280,11 @@ def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dic
         poses[:, SHOULDER[side]] = (forward * down * turn).as_rotvec() * m
         collar = smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
         poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
-        poses[:, ELBOW[side]] = np.stack([np.zeros(n), -np.clip(a["elbow"], 0.05, 2.2), np.zeros(n)], 1) * m
+        raised = np.maximum(flex - 0.7, 0.0) + np.maximum(abduct - 0.4, 0.0)
+        cap = MAX_ELBOW - RAISED_REACH * raised  # approached softly (a hard clip snaps the forearm open)
+        bend = rate_limited(np.maximum(-0.1 * np.logaddexp(-a["elbow"] / 0.1, -cap / 0.1), 0.05),
+                            MAX_ELBOW_SPEED / FPS)
+        poses[:, ELBOW[side]] = np.stack([np.zeros(n), -bend, np.zeros(n)], 1) * m
         poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
         poses[:, list(HAND[side])] = hands.finger_poses(fingers[side], m)
     return poses.astype(np.float32)
