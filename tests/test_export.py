@@ -197,3 +197,37 @@ def test_a_label_that_changes_along_the_video_shows_each_text_from_its_time():
     assert np.array_equal(frames[0][corner], frames[29][corner])
     assert not np.array_equal(frames[29][corner], frames[30][corner])
     assert np.array_equal(frames[0][100:], frames[30][100:])
+
+
+def test_the_video_draws_the_face_from_its_arkit_weights():
+    """With a face track the head shows it: the mouth's dark inside only when the jaw is open (not when
+    mouthClose shuts the lips over it), white eyes that a blink closes, lip corners above the mouth's middle
+    for a smile and below it for a frown; without one the head keeps its two dark eyes."""
+    from emogesture.types import ARKIT_NAMES
+    from emogesture.types import SMPLXSequence
+
+    index = {name: i for i, name in enumerate(ARKIT_NAMES)}
+    shapes = [{}, {"jawOpen": 0.8}, {"jawOpen": 0.8, "mouthClose": 0.8}, {"eyeBlinkLeft": 1, "eyeBlinkRight": 1},
+              {"mouthSmileLeft": 1, "mouthSmileRight": 1}, {"mouthFrownLeft": 1, "mouthFrownRight": 1}]
+    seq = SMPLXSequence(poses=np.zeros((len(shapes), 55, 3), np.float32), trans=np.zeros((len(shapes), 3), np.float32))
+    seq.arkit = np.zeros((len(shapes), 52), np.float32)
+    for f, shape in enumerate(shapes):
+        for name, weight in shape.items():
+            seq.arkit[f, index[name]] = weight
+    renderer = MannequinRenderer()
+    frames = np.stack(list(renderer.frames(seq))).astype(int)
+    drawn = np.abs(frames - renderer.background.astype(int)).sum(-1) > 10
+    dark_red = (frames[..., 0] < 120) & (frames[..., 1] < 45) & (frames[..., 0] > frames[..., 1] + 20)  # the inside
+    white = (frames.min(-1) > 225) & drawn
+    head = (slice(40, 200), slice(250, 390))
+    closed = dark_red[0][head].sum()  # a few pixels of the lips' dark rims
+    assert dark_red[1][head].sum() > 40 + 5 * closed and dark_red[2][head].sum() <= closed + 5
+    eyes = (slice(60, 140), slice(270, 370))
+    assert white[0][eyes].sum() > 30 and white[3][eyes].sum() < white[0][eyes].sum() / 4  # (the highlight stays)
+    lips = (frames[..., 0] > 150) & (frames[..., 0] - frames[..., 1] > 60)
+    rows = [np.nonzero(lips[f][head])[0] for f in (4, 5)]  # image rows grow downward
+    assert rows[0].min() < rows[1].min() - 2  # the smile's corners rise above the frown's
+    no_face = seq.slice(0, 1) if hasattr(seq, "slice") else seq
+    no_face.arkit = None
+    plain = next(renderer.frames(no_face)).astype(int)
+    assert ((plain.min(-1) > 225) & drawn[0])[eyes].sum() < white[0][eyes].sum() / 4

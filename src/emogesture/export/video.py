@@ -1,22 +1,24 @@
 """MP4 previews of SMPL-X sequences: a lit capsule mannequin, software-rendered, H.264 + AAC.
 
-Each frame is drawn with numpy alone (no GPU, no display): every bone is a capsule (a sphere for the
-head and eyes) projected orthographically onto a front view, shaded per pixel from the capsule's
-analytic normal (ambient + Lambert + a little specular, a dark rim as outline), with a z-buffer and
-one pixel of edge anti-aliasing. The camera is fixed for the whole sequence: centred on the upper body
-of the rest skeleton moved by the sequence's mean root translation. Frames are piped to ``ffmpeg``
-(libx264, yuv420p, so browsers play it) and the speech, when given, is muxed in as AAC. A label
-naming the speech, the emotion / style source and the seed is drawn in the top-left corner.
+Each frame is drawn on the CPU (no GPU, no display; :mod:`emogesture.export.raster`, compiled with numba):
+every bone is a capsule (a sphere for the head and eyes) projected orthographically onto a front view,
+shaded per pixel from the capsule's analytic normal (ambient + Lambert + a little specular, a dark rim as
+outline), with a z-buffer and one pixel of edge anti-aliasing. The camera is fixed for the whole sequence:
+centred on the upper body of the rest skeleton moved by the sequence's mean root translation. Frames are
+converted to yuv420p here and piped to ``ffmpeg`` (libx264, so browsers play it), and the speech, when
+given, is muxed in as AAC. A label naming the speech, the emotion / style source and the seed is drawn in
+the top-left corner.
 """
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
@@ -25,20 +27,23 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError
+from emogesture.export.raster import draw_capsules, rgb_to_yuv420
 from emogesture.fileio import atomic_output
 from emogesture.motion import JOINT_NAMES, SkeletonBody, rest_joints
-from emogesture.types import SMPLXSequence
+from emogesture.types import ARKIT_NAMES, SMPLXSequence
 
 _J = {name: i for i, name in enumerate(JOINT_NAMES)}
 _LIGHT = np.array([-0.35, 0.55, 0.75]) / np.linalg.norm([-0.35, 0.55, 0.75])  # x right, y up, z to the viewer
 _HALF = (_LIGHT + np.array([0.0, 0.0, 1.0])) / np.linalg.norm(_LIGHT + np.array([0.0, 0.0, 1.0]))
-_LIGHT32, _HALF32 = _LIGHT.astype(np.float32), _HALF.astype(np.float32)
 
 SHIRT = (0.32, 0.45, 0.66)
 SKIN = (0.91, 0.76, 0.62)
 WOOD = (0.86, 0.72, 0.55)
 DARK = (0.15, 0.15, 0.18)
 TROUSERS = (0.30, 0.31, 0.36)
+EYE_WHITE, LIPS, MOUTH, BROW = (0.96, 0.96, 0.95), (0.74, 0.33, 0.32), (0.28, 0.06, 0.07), (0.32, 0.22, 0.16)
+HEAD_RADIUS = 0.105
+_ARKIT = {name: i for i, name in enumerate(ARKIT_NAMES)}
 
 
 def _bones() -> list[tuple[int, int, float, tuple[float, float, float]]]:
@@ -77,6 +82,49 @@ def head_frame(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     fwd = (0.06 * jw + 0.02 * m) / det
     return (up / np.linalg.norm(up, axis=-1, keepdims=True).clip(1e-9),
             fwd / np.linalg.norm(fwd, axis=-1, keepdims=True).clip(1e-9))
+
+
+def face_primitives(centre: np.ndarray, up: np.ndarray, fwd: np.ndarray, face: np.ndarray
+                    ) -> list[tuple[np.ndarray, np.ndarray, float, tuple]]:
+    """The face drawn on the head sphere at ``centre`` (``up``, ``fwd``: the head's unit axes) from its 52
+    ARKit weights ``face``: eyes that open, close and look about, brows, and a mouth whose opening is
+    ``jawOpen - mouthClose`` and whose corners rise with a smile and fall with a frown."""
+    w = {name: float(face[i]) for name, i in _ARKIT.items()}
+    parts: list[tuple[np.ndarray, np.ndarray, float, tuple, float]] = []  # (offset a, offset b, radius, colour, lift)
+    for side, name in ((1.0, "Left"), (-1.0, "Right")):
+        eye = np.array([side * 0.034, 0.012])
+        opening = np.clip(1.0 - w[f"eyeBlink{name}"] + 0.3 * w[f"eyeWide{name}"] - 0.4 * w[f"eyeSquint{name}"], 0.0, 1.3)
+        if opening > 0.25:
+            r = 0.006 + 0.007 * opening
+            parts.append((eye - [0.005, 0], eye + [0.005, 0], r, EYE_WHITE, 0.0))
+            look = np.array([side * (w[f"eyeLookOut{name}"] - w[f"eyeLookIn{name}"]),
+                             w[f"eyeLookUp{name}"] - w[f"eyeLookDown{name}"]]) * 0.006
+            parts.append((eye + look, eye + look, min(0.0065, r * 0.7), DARK, 0.6 * r + 0.3 * min(0.0065, r * 0.7)))
+        else:  # a closed eye: a line
+            parts.append((eye - [0.011, 0], eye + [0.011, 0], 0.003, DARK, 0.0))
+        inner = eye + [-side * 0.010, 0.026 + 0.012 * w["browInnerUp"] - 0.010 * w[f"browDown{name}"]]
+        outer = eye + [side * 0.014, 0.025 + 0.012 * w[f"browOuterUp{name}"] - 0.004 * w[f"browDown{name}"]]
+        parts.append((inner, outer, 0.0045, BROW, 0.0))
+    opening = np.clip(w["jawOpen"] - w["mouthClose"] + 0.3 * w["mouthFunnel"], 0.0, 1.0) * 0.022
+    half = 0.022 * (1.0 + 0.3 * (w["mouthSmileLeft"] + w["mouthSmileRight"]) / 2 - 0.45 * w["mouthPucker"]
+                    + 0.25 * (w["mouthStretchLeft"] + w["mouthStretchRight"]) / 2)
+    middle = np.array([0.0, -0.048 - 0.3 * opening])
+    for side, name in ((1.0, "Left"), (-1.0, "Right")):
+        corner = np.array([side * half, -0.048 + 0.012 * (w[f"mouthSmile{name}"] - w[f"mouthFrown{name}"])])
+        if opening > 0.002:
+            parts.append((corner, middle, 0.0015 + opening, MOUTH, 0.0))
+        parts.append((corner, middle + [0, opening], 0.0045, LIPS, 0.0))
+        parts.append((corner, middle - [0, opening], 0.005, LIPS, 0.0))
+    # every end onto the head's front, sunk so that 0.7 of its radius stands out (plus its lift toward the viewer)
+    offsets = np.array([[a, b] for a, b, _, _, _ in parts], np.float64)  # [K, 2 ends, (left, up)]
+    radius = np.array([p[2] for p in parts])
+    lift = np.array([p[4] for p in parts])
+    left = np.cross(up, fwd)  # the character's left
+    depth = np.sqrt(np.maximum(1.0 - (offsets ** 2).sum(-1) / HEAD_RADIUS ** 2, 0.0))[..., None]
+    d = fwd * depth + (left * offsets[..., :1] + up * offsets[..., 1:]) / HEAD_RADIUS
+    d /= np.linalg.norm(d, axis=-1, keepdims=True).clip(1e-9)
+    ends = centre + (HEAD_RADIUS - 0.3 * radius)[:, None, None] * d + (lift[:, None, None] - 0.0) * fwd
+    return [(ends[k, 0], ends[k, 1], float(radius[k]), parts[k][3]) for k in range(len(parts))]
 
 
 @dataclass
@@ -121,85 +169,47 @@ class MannequinRenderer:
         self._x = np.arange(width, dtype=np.float32)
         self._y = np.arange(height, dtype=np.float32)
 
-    def primitives(self, joints: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float, tuple]]:
-        """Joint positions ``[55, 3]`` of one frame -> capsules ``(a [3], b [3], radius m, colour)``."""
+    def primitives(self, joints: np.ndarray, face: np.ndarray | None = None
+                   ) -> list[tuple[np.ndarray, np.ndarray, float, tuple]]:
+        """Joint positions ``[55, 3]`` of one frame (and its 52 ARKit weights ``face``, or None) -> capsules
+        ``(a [3], b [3], radius m, colour)``."""
         prims = [(joints[a], joints[b], r, c) for a, b, r, c in BONES]
         up, fwd = head_frame(joints)
         centre = joints[_J["head"]] + 0.04 * up + 0.025 * fwd
-        prims.append((centre, centre, 0.105, SKIN))
+        prims.append((centre, centre, HEAD_RADIUS, SKIN))
+        if face is not None:
+            return prims + face_primitives(centre, up, fwd, face)
         for eye in ("left_eye_smplhf", "right_eye_smplhf"):
             d = joints[_J[eye]] + 0.01 * up - centre
             p = centre + 0.1 * d / max(np.linalg.norm(d), 1e-9)
             prims.append((p, p, 0.014, DARK))
         return prims
 
-    def draw(self, joints: np.ndarray, camera: Camera) -> np.ndarray:
-        """One frame: joint positions ``[55, 3]`` -> RGB ``[H, W, 3]`` uint8."""
+    def capsules(self, joints: np.ndarray, camera: Camera, face: np.ndarray | None = None) -> np.ndarray:
+        """Joint positions ``[55, 3]`` of one frame (and its face weights) -> the capsules ``[K, 11]`` of
+        :func:`~emogesture.export.raster.draw_capsules`, projected by ``camera``."""
+        prims = self.primitives(joints, face)
+        pixels, depth = camera.project(np.array([[a, b] for a, b, _, _ in prims], np.float64))
+        radius = np.array([r for _, _, r, _ in prims], np.float64)
+        colour = np.array([c for _, _, _, c in prims], np.float64) * 255
+        return np.column_stack([pixels[:, 0], depth[:, 0], pixels[:, 1], depth[:, 1],
+                                radius * camera.scale, radius, colour])
+
+    def draw(self, joints: np.ndarray, camera: Camera, face: np.ndarray | None = None) -> np.ndarray:
+        """One frame: joint positions ``[55, 3]`` (and its 52 ARKit weights, or None) -> RGB ``[H, W, 3]``
+        uint8."""
         img = self.background.copy()
         zbuf = np.full((self.height, self.width), -np.inf, np.float32)
-        for a, b, radius, colour in self.primitives(joints):
-            self._capsule(img, zbuf, camera, a, b, radius, np.asarray(colour, np.float32) * 255)
+        draw_capsules(img, zbuf, self.capsules(joints, camera, face), _LIGHT, _HALF)
         return img
-
-    def _capsule(self, img, zbuf, camera: Camera, a, b, radius: float, colour: np.ndarray) -> None:
-        (pa, pb), (za, zb) = camera.project(np.stack([a, b]))
-        r = radius * camera.scale
-        x0 = max(int(np.floor(min(pa[0], pb[0]) - r - 1)), 0)
-        x1 = min(int(np.ceil(max(pa[0], pb[0]) + r + 2)), self.width)
-        y0 = max(int(np.floor(min(pa[1], pb[1]) - r - 1)), 0)
-        y1 = min(int(np.ceil(max(pa[1], pb[1]) + r + 2)), self.height)
-        if x0 >= x1 or y0 >= y1:
-            return
-        xs, ys = self._x[None, x0:x1], self._y[y0:y1, None]
-        ab = (pb - pa).astype(np.float32)
-        pa = pa.astype(np.float32)
-        length2 = float(ab @ ab)
-        if length2 > 1e-9:
-            t = ((xs - pa[0]) * np.float32(ab[0] / length2) + (ys - pa[1]) * np.float32(ab[1] / length2))
-            np.minimum(np.maximum(t, 0.0, out=t), 1.0, out=t)
-        else:
-            t = np.zeros((y1 - y0, x1 - x0), np.float32)
-        dx = xs - (pa[0] + t * ab[0])
-        dy = ys - (pa[1] + t * ab[1])
-        d2 = dx * dx + dy * dy
-        # from here on only the pixels the capsule covers, by their index in the whole frame
-        covered = np.flatnonzero(d2 < (r + 0.5) ** 2)
-        if not len(covered):
-            return
-        bw = x1 - x0
-        pix = (y0 + covered // bw) * self.width + (x0 + covered % bw)
-        t, dx, dy = t.ravel()[covered], dx.ravel()[covered], dy.ravel()[covered]
-        dist = np.sqrt(d2.ravel()[covered])
-        rel = np.minimum(dist * np.float32(1.0 / r), 1.0)
-        nz = np.sqrt(1.0 - rel * rel)
-        depth = np.float32(za) + t * np.float32(zb - za) + np.float32(radius) * nz
-        zflat = zbuf.reshape(-1)
-        keep = depth > zflat[pix]
-        if not keep.any():
-            return
-        pix, dist, rel, nz, depth, dx, dy = pix[keep], dist[keep], rel[keep], nz[keep], depth[keep], dx[keep], dy[keep]
-        inv = np.float32(1.0 / r)
-        nx, ny = dx * inv, dy * -inv
-        lambert = np.maximum(nx * _LIGHT32[0] + ny * _LIGHT32[1] + nz * _LIGHT32[2], 0.0)
-        spec = np.maximum(nx * _HALF32[0] + ny * _HALF32[1] + nz * _HALF32[2], 0.0)
-        spec *= spec
-        spec *= spec
-        spec *= spec  # the 8th power, then cubed below: a highlight of power 24
-        shade = (0.36 + 0.64 * lambert) * np.where(rel > 0.88, np.float32(0.55), np.float32(1.0))
-        rgb = colour * shade[:, None] + (40.8 * spec * spec * spec)[:, None]
-        alpha = np.minimum(np.float32(r + 0.5) - dist, 1.0)[:, None]
-        flat = img.reshape(-1, 3)
-        old = flat[pix]
-        flat[pix] = np.minimum(alpha * (rgb - old) + old + 0.5, 255.0)
-        solid = alpha[:, 0] >= 0.5
-        zflat[pix[solid]] = depth[solid]
 
     def frames(self, seq: SMPLXSequence, camera: Camera | None = None,
                overlay: np.ndarray | list[np.ndarray | None] | None = None, which: np.ndarray | None = None,
-               workers: int = 1) -> Iterator[np.ndarray]:
+               threads: int = 1, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Iterator[np.ndarray]:
         """RGB frames ``[H, W, 3]`` uint8 of the whole sequence, in order (forward kinematics batched),
-        with the ``overlay`` label pasted (a list of labels: frame ``i`` gets ``overlay[which[i]]``);
-        ``workers > 1`` draws chunks of frames in that many forked processes (the drawing is numpy alone)."""
+        with its face when it has a face track, the ``overlay`` label pasted (a list of labels: frame ``i`` gets ``overlay[which[i]]``), each
+        passed through ``convert`` when given; ``threads > 1`` draws that many frames at once (the drawing
+        releases the GIL)."""
         camera = camera or Camera.upper_body(seq, self.width, self.height)
         body = SkeletonBody(seq.betas)
         with torch.no_grad():
@@ -207,33 +217,25 @@ class MannequinRenderer:
         if not isinstance(overlay, list):
             overlay, which = [overlay], None
         which = np.zeros(len(joints), int) if which is None else np.asarray(which)
-        job = (self, joints, camera, overlay, which)
-        if workers <= 1 or len(joints) < 2 * _CHUNK or "fork" not in mp.get_all_start_methods():
-            for i in range(len(joints)):
-                yield _draw(job, i)
+        labels = [None if o is None else _premultiplied(o) for o in overlay]
+
+        def one(i: int) -> np.ndarray:
+            frame = self.draw(joints[i], camera, None if seq.arkit is None else seq.arkit[i])
+            if labels[which[i]] is not None:
+                frame = _paste(frame, *labels[which[i]])
+            return frame if convert is None else convert(frame)
+
+        if threads <= 1:
+            yield from map(one, range(len(joints)))
             return
-        global _JOB
-        _JOB = job  # inherited by the forked workers
-        chunks = [(i, min(i + _CHUNK, len(joints))) for i in range(0, len(joints), _CHUNK)]
-        with mp.get_context("fork").Pool(workers) as pool:
-            for block in pool.imap(_draw_chunk, chunks):
-                yield from block
-        _JOB = None
-
-
-_CHUNK = 16  # frames a worker draws per task
-_JOB = None
-
-
-def _draw(job, i: int) -> np.ndarray:
-    renderer, joints, camera, overlays, which = job
-    frame = renderer.draw(joints[i], camera)
-    overlay = overlays[which[i]]
-    return frame if overlay is None else _paste(frame, overlay)
-
-
-def _draw_chunk(bounds: tuple[int, int]) -> np.ndarray:
-    return np.stack([_draw(_JOB, i) for i in range(*bounds)])
+        with ThreadPoolExecutor(threads) as pool:
+            pending: deque = deque()
+            for i in range(len(joints)):
+                pending.append(pool.submit(one, i))
+                if len(pending) > 2 * threads:  # a few frames ahead, not the whole video in memory
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
 
 
 def label_overlay(text: str, width: int) -> np.ndarray | None:
@@ -262,13 +264,25 @@ def label_overlays(label: str | Sequence[tuple[float, str]], width: int, fps: fl
     return [label_overlay(text, width) for _, text in label], which.clip(0, None)
 
 
-def _paste(frame: np.ndarray, overlay: np.ndarray, x: int = 8, y: int = 8) -> np.ndarray:
-    h, w = overlay.shape[:2]
-    region = frame[y:y + h, x:x + w].astype(np.float64) / 255.0
-    a = overlay[: region.shape[0], : region.shape[1], 3:]
-    blended = a * overlay[: region.shape[0], : region.shape[1], :3] + (1 - a) * region
-    frame[y:y + h, x:x + w] = (blended * 255 + 0.5).astype(np.uint8)
+def _premultiplied(overlay: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An RGBA overlay ``[h, w, 4]`` in [0, 1] -> its colour times its alpha (0-255, plus 0.5 for rounding)
+    and one minus its alpha, float32, as :func:`_paste` blends them."""
+    alpha = overlay[..., 3:].astype(np.float32)
+    return (alpha * overlay[..., :3] * 255 + 0.5).astype(np.float32), 1 - alpha
+
+
+def _paste(frame: np.ndarray, colour: np.ndarray, keep: np.ndarray, x: int = 8, y: int = 8) -> np.ndarray:
+    region = frame[y:y + colour.shape[0], x:x + colour.shape[1]]
+    h, w = region.shape[:2]
+    region[:] = (colour[:h, :w] + keep[:h, :w] * region).astype(np.uint8)
     return frame
+
+
+def to_yuv420(frame: np.ndarray) -> np.ndarray:
+    """An RGB frame ``[H, W, 3]`` uint8 -> its yuv420p bytes ``[H * W * 3 // 2]`` uint8 (BT.601 limited)."""
+    out = np.empty(frame.shape[0] * frame.shape[1] * 3 // 2, np.uint8)
+    rgb_to_yuv420(frame, out)
+    return out
 
 
 def ffmpeg_binary() -> str:
@@ -293,20 +307,21 @@ def save_mp4(seq: SMPLXSequence, path: str | PathLike[str], *, audio: tuple[np.n
     renderer = MannequinRenderer(width, height)
     overlays, which = label_overlays(label, width, seq.fps, seq.num_frames)
     with atomic_output(path, overwrite) as tmp, tempfile.TemporaryDirectory(prefix="emogesture-mp4-") as work:
-        cmd = [ffmpeg, "-nostdin", "-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "rgb24",
+        cmd = [ffmpeg, "-nostdin", "-v", "error", "-y", "-f", "rawvideo", "-pix_fmt", "yuv420p",
                "-s", f"{width}x{height}", "-r", f"{float(seq.fps):g}", "-i", "pipe:0"]
         if audio is not None:
             wav = Path(work) / "speech.wav"
             sf.write(str(wav), np.asarray(audio[0], np.float32).clip(-1, 1), int(audio[1]), subtype="PCM_16")
             cmd += ["-i", str(wav), "-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "96k"]
-        cmd += ["-c:v", "libx264", "-preset", "superfast", "-crf", "20", "-pix_fmt", "yuv420p",
+        cmd += ["-c:v", "libx264", "-preset", "ultrafast", "-crf", "20", "-pix_fmt", "yuv420p",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
         try:
             proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         except OSError as err:
             raise EmogestureError(f"{ffmpeg}: ffmpeg cannot be run ({err.strerror or err})") from None
         try:
-            frames = tqdm(renderer.frames(seq, overlay=overlays, which=which, workers=min(os.cpu_count() or 1, 2)),
+            frames = tqdm(renderer.frames(seq, overlay=overlays, which=which, threads=min(os.cpu_count() or 1, 2),
+                                          convert=to_yuv420),
                           total=seq.num_frames, desc=f"rendering {Path(path).name}", unit="frame",
                           disable=not progress, leave=False)
             for frame in frames:
