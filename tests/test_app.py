@@ -68,14 +68,17 @@ def _open(driver, url):
     WebDriverWait(driver, 60).until(lambda d: d.find_elements(By.ID, "animate"))
 
 
-def _request(driver, clip, emotion, length="0:10"):
-    """Upload ``clip`` (the player shows its ``length`` once it is in), choose ``emotion``, press Animate."""
+def _request(driver, clip, emotion, length="0:10", face=False):
+    """Upload ``clip`` (the player shows its ``length`` once it is in), choose ``emotion`` (and a face), press
+    Animate."""
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
     driver.find_element(By.CSS_SELECTOR, "#speech input[type=file]").send_keys(str(clip))
     WebDriverWait(driver, 60).until(lambda d: length in d.find_element(By.ID, "speech").text)
     next(label for label in driver.find_elements(By.CSS_SELECTOR, "label") if label.text.strip() == emotion).click()
+    if face:
+        driver.find_element(By.CSS_SELECTOR, "#face input[type=checkbox]").click()
     driver.find_element(By.ID, "animate").click()
 
 
@@ -94,7 +97,7 @@ def test_upload_choose_anger_animate_watch_and_download(server, tmp_path):
     driver = headless_chromium()
     try:
         _open(driver, url)
-        _request(driver, clip, "anger")
+        _request(driver, clip, "anger", face=True)
         src = _video_src(driver)
         assert "emotion-anger" in src
         duration = WebDriverWait(driver, 60).until(lambda d: d.execute_script(
@@ -102,6 +105,8 @@ def test_upload_choose_anger_animate_watch_and_download(server, tmp_path):
         assert duration == pytest.approx(10.0, abs=0.2)
         WebDriverWait(driver, 120).until(lambda d: d.execute_script(
             "return document.querySelector('#viewer canvas').dataset.loaded || null;"))
+        # the face asked for is in the glb, and the view draws its 52 morph targets
+        assert driver.execute_script("return document.querySelector('#viewer canvas').dataset.face;") == "52"
         time.sleep(1.0)
         still = canvas_pixels(driver, '#viewer canvas')
         background = still[2, 2]

@@ -314,3 +314,39 @@ def test_streams_at_once_each_get_their_own_frames(server):
     assert len(anger.poses) == len(sadness.poses) == round(7.3 * 30) and not anger.errors + sadness.errors
     assert np.abs(anger.poses - sadness.poses).mean() > 0.01  # each stream its own emotion and seed
     assert proc.poll() is None
+
+
+def test_the_page_shows_the_face_a_stream_sends(server, tmp_path):
+    """With "a face too" ticked, the page asks for the face, puts each frame's 52 weights on the mannequin's
+    face and draws it: the canvas changes where the face is hidden again."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    require_chromium()
+    url, clip, proc = server
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    microphone = tmp_path / "microphone.wav"
+    sf.write(microphone, wave, sr, subtype="PCM_16")
+    driver = headless_chromium("--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
+                               f"--use-file-for-fake-audio-capture={microphone}", size="1100,1000")
+    try:
+        driver.get(url.replace("ws://", "http://").removesuffix("/live") + "/")
+        WebDriverWait(driver, 60).until(lambda d: d.execute_script(
+            "return window.emogestureLive !== undefined && window.emogestureLive.clip !== undefined"))
+        assert driver.execute_script("return window.emogestureLive.clip.face.shown") is False
+        driver.find_element("id", "face").click()
+        driver.find_element("id", "mic").click()
+        WebDriverWait(driver, 60).until(lambda d: d.execute_script("return window.emogestureLive.frames") > 30)
+        face = driver.execute_script("const f = window.emogestureLive.clip.face; "
+                                     "return {shown: f.shown, weights: Array.from(f.track)};")
+        assert face["shown"] is True and len(face["weights"]) == 52 and max(face["weights"]) > 0.05
+        driver.find_element("id", "stop").click()
+        time.sleep(0.5)
+        shown = canvas_pixels(driver, "#view")
+        driver.execute_script("window.emogestureLive.clip.face.shown = false;")
+        time.sleep(0.5)
+        hidden = canvas_pixels(driver, "#view")
+        assert (np.abs(shown - hidden).sum(-1) > 30).sum() > 20  # the face's pixels
+        driver.save_screenshot(str(tmp_path / "face.png"))
+    finally:
+        driver.quit()
+    assert proc.poll() is None

@@ -88,7 +88,7 @@ class AppSession:
 
     def run(self, speech: str | None, emotion: str, timeline: str, weight: float, emotion_from: str | None,
             style_from: str | None, seed: float, samples: float, skeleton: str,
-            neutral_from: str | None = None, neutral_span: str | None = None) -> tuple:
+            neutral_from: str | None = None, neutral_span: str | None = None, face: bool = False) -> tuple:
         """The page's inputs -> (video, 3D view value, perception rows, summary, files). A bad input raises
         :class:`EmogestureError` with the message the page shows."""
         if not speech:
@@ -108,7 +108,7 @@ class AppSession:
             style_from=Path(style_from) if style_from else None,
             neutral_from=Path(neutral_from) if neutral_from else None,
             neutral_span=(neutral_span or "").strip() or None, formats=self.formats, seed=int(seed),
-            samples=int(samples), skeleton=skeleton)
+            samples=int(samples), skeleton=skeleton, face=bool(face))
         if request.label is not None and emotion_from:
             raise EmogestureError("choose an emotion label or an emotion recording, not both")
         with self.lock:
@@ -167,6 +167,8 @@ def build_app(session: AppSession):
                     seed = gr.Number(value=0, precision=0, label="seed")
                     samples = gr.Slider(1, 4, value=1, step=1, label="samples")
                     skeleton = gr.Radio(["smplx", "mixamo"], value="smplx", label="skeleton of bvh, glb, fbx")
+                face = gr.Checkbox(False, label="a face too (lips, expression, blinks: ARKit blendshapes in every file)",
+                                   elem_id="face")
                 button = gr.Button("Animate", variant="primary", elem_id="animate")
             with gr.Column(scale=2):
                 # no badge: it would cover the first line of the label drawn in the video
@@ -178,7 +180,7 @@ def build_app(session: AppSession):
                                      label="emotion perceived in each window", elem_id="perception")
                 files = gr.File(file_count="multiple", label="downloads", elem_id="downloads")
         button.click(run, [speech, emotion, timeline, weight, emotion_from, style_from, seed, samples, skeleton,
-                           neutral_from, neutral_span],
+                           neutral_from, neutral_span, face],
                      [video, viewer, table, summary, files], concurrency_limit=1)
     return page
 

@@ -460,7 +460,8 @@ async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int =
     limits = limits or LiveLimits()
     server = LiveServer(pipe, workers or default_workers(), limits)
     tokens = TokenCheck(token, port)
-    rest = SMPLXSequence(poses=np.zeros((1, 55, 3), np.float32), trans=np.zeros((1, 3), np.float32))
+    rest = SMPLXSequence(poses=np.zeros((1, 55, 3), np.float32), trans=np.zeros((1, 3), np.float32),
+                         arkit=np.zeros((1, 52), np.float32))  # its face at rest, for the streams that ask for one
     files = {  # path -> (content type, body): the page, its mannequin code and the mannequin at rest
         "/": ("text/html; charset=utf-8", PAGE.read_bytes()),
         "/mannequin.js": ("text/javascript; charset=utf-8", (ASSETS / "web" / "mannequin.js").read_bytes()),

@@ -1,10 +1,12 @@
 // emogesture's mannequin in WebGL: parses an emogesture .glb (one skinned mesh, one skin, one animation of
-// every joint's rotation and the root's translation sampled at every frame; see emogesture/export/gltf.py),
-// skins it in the vertex shader and draws it with a simple light. Mouse: drag to orbit, wheel to zoom.
+// every joint's rotation and the root's translation sampled at every frame, and with a face track a second
+// skinned mesh named "face" with 52 morph targets and their weights; see emogesture/export/gltf.py), blends
+// the face's morph targets on the CPU, skins both in the vertex shader and draws them with a simple light.
+// Mouse: drag to orbit, wheel to zoom.
 // makeViewer(canvas, audio, status) -> {upload(glbArrayBuffer) -> clip}: the clip plays in step with `audio`
 // (its currentTime) when it has a source, else on its own clock; a live client overwrites the clip's
-// `rotations` and `rootTranslation` of frame 0 to show the newest pose. Used by the app's 3D view and the
-// live page.
+// `rotations` and `rootTranslation` of frame 0 to show the newest pose (and `face.track`'s first 52 values,
+// with `face.shown` true, to show the newest face). Used by the app's 3D view and the live page.
 
 const GL_TYPES = {5121: Uint8Array, 5123: Uint16Array, 5125: Uint32Array, 5126: Float32Array};
 const WIDTHS = {SCALAR: 1, VEC2: 2, VEC3: 3, VEC4: 4, MAT4: 16};
@@ -15,13 +17,60 @@ function parseGlb(buffer) {
   const jsonLength = view.getUint32(12, true);
   const json = JSON.parse(new TextDecoder().decode(new Uint8Array(buffer, 20, jsonLength)));
   const binStart = 20 + jsonLength + 8;
+  const view_of = (viewIndex, Type, count, offset) => {
+    const v = json.bufferViews[viewIndex];
+    return new Type(buffer, binStart + (v.byteOffset || 0) + (offset || 0), count);
+  };
   const read = (index) => {
     const a = json.accessors[index];
-    const v = json.bufferViews[a.bufferView];
     const Type = GL_TYPES[a.componentType];
-    return new Type(buffer, binStart + (v.byteOffset || 0) + (a.byteOffset || 0), a.count * WIDTHS[a.type]);
+    if (a.sparse) {  // zeros with a few rows given (the face's morph targets)
+      const width = WIDTHS[a.type], out = new Type(a.count * width);
+      const rows = view_of(a.sparse.indices.bufferView, GL_TYPES[a.sparse.indices.componentType], a.sparse.count);
+      const values = view_of(a.sparse.values.bufferView, Type, a.sparse.count * width);
+      rows.forEach((row, i) => { for (let c = 0; c < width; c++) out[row * width + c] = values[i * width + c]; });
+      return out;
+    }
+    return view_of(a.bufferView, Type, a.count * WIDTHS[a.type], a.byteOffset);
   };
   return {json, read};
+}
+
+// the face's mesh and weights when the file has them: its targets kept as the rows each one moves
+function loadFace({json, read}, anim) {
+  const mesh = json.meshes.findIndex((m) => m.name === "face");
+  if (mesh < 0) return null;
+  const prim = json.meshes[mesh].primitives[0];
+  const node = json.nodes.findIndex((n) => n.mesh === mesh);
+  const channel = anim.channels.find((c) => c.target.node === node && c.target.path === "weights");
+  const targets = prim.targets.map((t) => {
+    const d = read(t.POSITION), rows = [];
+    for (let v = 0; v < d.length / 3; v++) if (d[3 * v] || d[3 * v + 1] || d[3 * v + 2]) rows.push(v);
+    return {rows, d};
+  });
+  const base = read(prim.attributes.POSITION);
+  return {base, positions: new Float32Array(base), normals: read(prim.attributes.NORMAL),
+          colors: read(prim.attributes.COLOR_0), jointIndex: read(prim.attributes.JOINTS_0),
+          weights: read(prim.attributes.WEIGHTS_0), indices: read(prim.indices), targets,
+          names: json.meshes[mesh].extras.targetNames, track: channel ? read(anim.samplers[channel.sampler].output) : null,
+          shown: Boolean(channel)};
+}
+
+// the face's positions at time t: its rest plus each morph target times its weight (linear between frames)
+function morphFace(face, clip, t) {
+  const n = face.targets.length, f = Math.min(Math.max(t * clip.fps, 0), clip.frames - 1);
+  const i = Math.floor(f), j = Math.min(i + 1, clip.frames - 1), w = f - i;
+  face.positions.set(face.base);
+  face.targets.forEach(({rows, d}, k) => {
+    const weight = face.track ? (1 - w) * face.track[n * i + k] + w * face.track[n * j + k] : 0;
+    if (weight === 0) return;
+    for (const v of rows) {
+      face.positions[3 * v] += weight * d[3 * v];
+      face.positions[3 * v + 1] += weight * d[3 * v + 1];
+      face.positions[3 * v + 2] += weight * d[3 * v + 2];
+    }
+  });
+  return face.positions;
 }
 
 function loadClip({json, read}) {
@@ -49,7 +98,7 @@ function loadClip({json, read}) {
     positions: read(attr.POSITION), normals: read(attr.NORMAL), jointIndex: read(attr.JOINTS_0),
     weights: read(attr.WEIGHTS_0), indices: read(prim.indices), inverseBind: read(skin.inverseBindMatrices),
     parents, rest, times, rotations, rootTranslation, frames: times.length,
-    fps: times.length > 1 ? (times.length - 1) / times[times.length - 1] : 30,
+    fps: times.length > 1 ? (times.length - 1) / times[times.length - 1] : 30, face: loadFace({json, read}, anim),
   };
 }
 
@@ -117,21 +166,23 @@ function jointMatrices(clip, t) {
 }
 
 const VERTEX = `
-attribute vec3 position; attribute vec3 normal; attribute vec4 joint; attribute vec4 weight;
+attribute vec3 position; attribute vec3 normal; attribute vec4 joint; attribute vec4 weight; attribute vec3 color;
 uniform mat4 joints[JOINTS]; uniform mat4 projection; uniform mat4 view;
-varying vec3 vNormal;
+varying vec3 vNormal; varying vec3 vColor;
 void main() {
+  vColor = color;
   mat4 skin = weight.x * joints[int(joint.x)] + weight.y * joints[int(joint.y)]
             + weight.z * joints[int(joint.z)] + weight.w * joints[int(joint.w)];
   vNormal = mat3(skin) * normal;
   gl_Position = projection * view * skin * vec4(position, 1.0);
 }`;
 const FRAGMENT = `
-precision mediump float; varying vec3 vNormal;
+precision mediump float; varying vec3 vNormal; varying vec3 vColor;
 void main() {
   vec3 n = normalize(vNormal);
+  if (!gl_FrontFacing) n = -n;  // the face's parts are open surfaces, seen from both sides
   float light = 0.35 + 0.65 * max(dot(n, normalize(vec3(0.4, 0.8, 0.9))), 0.0);
-  gl_FragColor = vec4(vec3(0.78, 0.60, 0.42) * light, 1.0);
+  gl_FragColor = vec4(vColor * light, 1.0);
 }`;
 
 function compile(gl, vertex, fragment) {
@@ -151,7 +202,7 @@ function compile(gl, vertex, fragment) {
 function makeViewer(canvas, audio, status) {
   const gl = canvas.getContext("webgl", {preserveDrawingBuffer: true, antialias: true});
   if (!gl) { status.textContent = "this browser has no WebGL: the video shows the same animation"; return null; }
-  let clip = null, program = null, buffers = null, yaw = 0, pitch = 0.1, distance = 2.1, startedAt = performance.now();
+  let clip = null, program = null, buffers = null, faceBuffers = null, yaw = 0, pitch = 0.1, distance = 2.1, startedAt = performance.now();
   canvas.addEventListener("mousemove", (e) => {
     if (e.buttons & 1) { yaw -= e.movementX * 0.01; pitch = Math.max(-1.2, Math.min(1.2, pitch + e.movementY * 0.01)); }
   });
@@ -160,20 +211,41 @@ function makeViewer(canvas, audio, status) {
   function upload(glb) {
     clip = loadClip(parseGlb(glb));
     program = compile(gl, VERTEX.replace("JOINTS", String(clip.parents.length)), FRAGMENT);
-    const attribute = (name, data, size, type) => {
+    const attribute = (name, data, size, usage) => {
       const buffer = gl.createBuffer();
       gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
-      gl.bufferData(gl.ARRAY_BUFFER, data, gl.STATIC_DRAW);
-      return {location: gl.getAttribLocation(program, name), buffer, size, type};
+      gl.bufferData(gl.ARRAY_BUFFER, data, usage || gl.STATIC_DRAW);
+      return {location: gl.getAttribLocation(program, name), buffer, size, type: gl.FLOAT};
     };
-    const joints = new Float32Array(clip.jointIndex);  // WebGL 1 has no integer attributes
-    buffers = [attribute("position", clip.positions, 3, gl.FLOAT), attribute("normal", clip.normals, 3, gl.FLOAT),
-               attribute("joint", joints, 4, gl.FLOAT), attribute("weight", clip.weights, 4, gl.FLOAT)];
-    const index = gl.createBuffer();
-    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, index);
-    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, clip.indices, gl.STATIC_DRAW);
+    const elements = (data) => {
+      const index = gl.createBuffer();
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, index);
+      gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, data, gl.STATIC_DRAW);
+      return {index, count: data.length};
+    };
+    const wood = new Float32Array(clip.positions.length).map((_, i) => [0.78, 0.60, 0.42][i % 3]);
+    // WebGL 1 has no integer attributes: the joint indices as floats
+    buffers = {attributes: [attribute("position", clip.positions, 3), attribute("normal", clip.normals, 3),
+                            attribute("joint", new Float32Array(clip.jointIndex), 4), attribute("weight", clip.weights, 4),
+                            attribute("color", wood, 3)], ...elements(clip.indices)};
+    const face = clip.face;
+    faceBuffers = face && {attributes: [attribute("position", face.positions, 3, gl.DYNAMIC_DRAW),
+                                        attribute("normal", face.normals, 3),
+                                        attribute("joint", new Float32Array(face.jointIndex), 4),
+                                        attribute("weight", face.weights, 4), attribute("color", face.colors, 3)],
+                           ...elements(face.indices)};
     startedAt = performance.now();
     return clip;
+  }
+
+  function drawMesh(mesh) {
+    for (const b of mesh.attributes) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, b.buffer);
+      gl.enableVertexAttribArray(b.location);
+      gl.vertexAttribPointer(b.location, b.size, b.type, false, 0, 0);
+    }
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, mesh.index);
+    gl.drawElements(gl.TRIANGLES, mesh.count, gl.UNSIGNED_SHORT, 0);
   }
 
   function time() {
@@ -191,11 +263,6 @@ function makeViewer(canvas, audio, status) {
     if (!clip) return;
     gl.enable(gl.DEPTH_TEST);
     gl.useProgram(program);
-    for (const b of buffers) {
-      gl.bindBuffer(gl.ARRAY_BUFFER, b.buffer);
-      gl.enableVertexAttribArray(b.location);
-      gl.vertexAttribPointer(b.location, b.size, b.type, false, 0, 0);
-    }
     const t = time();
     const root = rootAt(clip, t);
     const target = [root[0], root[1] + 0.25, root[2]];
@@ -205,7 +272,12 @@ function makeViewer(canvas, audio, status) {
                         new Float32Array(perspective(0.7, canvas.width / canvas.height, 0.05, 50)));
     gl.uniformMatrix4fv(gl.getUniformLocation(program, "view"), false, new Float32Array(lookAt(eye, target)));
     gl.uniformMatrix4fv(gl.getUniformLocation(program, "joints"), false, jointMatrices(clip, t));
-    gl.drawElements(gl.TRIANGLES, clip.indices.length, gl.UNSIGNED_SHORT, 0);
+    drawMesh(buffers);
+    if (faceBuffers && clip.face.shown) {
+      gl.bindBuffer(gl.ARRAY_BUFFER, faceBuffers.attributes[0].buffer);
+      gl.bufferSubData(gl.ARRAY_BUFFER, 0, morphFace(clip.face, clip, t));
+      drawMesh(faceBuffers);
+    }
     canvas.dataset.frame = String(Math.round(t * clip.fps));  // for the tests: the frame on screen
   }
   requestAnimationFrame(draw);
