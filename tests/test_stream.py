@@ -109,3 +109,33 @@ def test_silence_is_calm_and_bad_emotions_are_one_line_errors(pipe, talk):
         s.set_emotion("rage")
     with pytest.raises(EmogestureError, match="needs an emotion label"):
         s.set_emotion("auto", 0.5)
+
+
+def test_streams_pushed_together_get_the_frames_each_gets_alone(pipe, talk):
+    """push_together (the live server's batched pass) gives every stream the frames it gets pushed alone:
+    different emotions, seeds and chunk sizes, so that some rounds have nothing due for some streams."""
+    from emogesture.pipeline.stream import push_together
+
+    wave = talk[: 4 * 16000]
+    options = [dict(emotion="anger", seed=1), dict(emotion="sadness", seed=2), dict(seed=3)]
+    chunks = [4000, 1600, 6400]
+
+    def pieces(n):
+        return [wave[i:i + n] for i in range(0, len(wave), n)]
+
+    alone = []
+    for opt, n in zip(options, chunks):
+        s = GestureStream(pipe, **opt)
+        alone.append([f for piece in pieces(n) for f in s.push(piece)] + s.end())
+    streams = [GestureStream(pipe, **opt) for opt in options]
+    queues = [pieces(n) for n in chunks]
+    got = [[] for _ in options]
+    while any(queues):
+        jobs = [(j, (streams[j], queues[j].pop(0), 16000)) for j in range(len(streams)) if queues[j]]
+        for (j, _), frames in zip(jobs, push_together([job for _, job in jobs])):
+            got[j] += frames
+    for j, s in enumerate(streams):
+        got[j] += s.end()
+        assert [f.start for f in got[j]] == [f.start for f in alone[j]] and len(got[j]) > 5
+        together = np.concatenate([f.sequence.poses for f in got[j]])
+        assert np.abs(together - np.concatenate([f.sequence.poses for f in alone[j]])).max() < 1e-3

@@ -42,10 +42,11 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
    ``--idle-timeout`` seconds (default 60; not counted while the server makes a neutral reference), close
    it with code 1008.
 
-Streams share one pipeline; their updates run on a few worker threads (one per core, at most four; one
-stream's updates one after another), while each connection's messages are read as they arrive. A stream
-whose audio waited while the workers were busy is updated once for all of it (its frames then come in a
-larger batch), so a loaded server falls behind by a bounded amount instead of without end.
+Streams share one pipeline; the updates of every stream whose audio waits are drawn together in one batched
+pass (the speech encoders per stream, the diffusion draws and their decoding for all at once; one stream's
+updates one after another), while each connection's messages are read as they arrive. A stream whose audio
+waited while a pass ran is updated once for all of it (its frames then come in a larger batch), so a loaded
+server falls behind by a bounded amount instead of without end.
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ from __future__ import annotations
 import asyncio
 import json
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
@@ -72,7 +74,7 @@ from emogesture.motion.rigs import rig_named
 from emogesture.motion.rotations import axis_angle_to_matrix, matrix_to_quaternion
 from emogesture.pipeline.generate import GesturePipeline
 from emogesture.pipeline.perception import perception_of
-from emogesture.pipeline.stream import GestureStream, StreamFrames
+from emogesture.pipeline.stream import GestureStream, StreamFrames, push_together
 from emogesture.types import SMPLXSequence
 
 PAGE = Path(__file__).with_name("page.html")
@@ -195,13 +197,52 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
     return json.dumps({"frames": out, "audio_s": round(audio_s, 4)}, separators=(",", ":"))
 
 
+class UpdateBatcher:
+    """The streams' audio that waits together becomes frames in one batched pass: each stream's push joins a
+    queue, and one thread takes everything queued at once (:func:`~emogesture.pipeline.stream.push_together`),
+    so that the more streams wait, the larger and cheaper per stream each pass is."""
+
+    def __init__(self) -> None:
+        self.queue: list[tuple] = []
+        self.lock = threading.Lock()
+        self.thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="emogesture-live-batch")
+
+    async def push(self, stream: GestureStream, samples: np.ndarray, rate: int) -> list[StreamFrames]:
+        """``stream.push(samples, rate, catch_up=True)``, drawn together with the other streams' that wait."""
+        loop = asyncio.get_running_loop()
+        future = loop.create_future()
+        with self.lock:
+            self.queue.append((stream, samples, rate, future))
+        loop.run_in_executor(self.thread, self._drain, loop)
+        return await future
+
+    def _drain(self, loop: asyncio.AbstractEventLoop) -> None:
+        with self.lock:
+            jobs, self.queue = self.queue, []
+        if not jobs:
+            return  # an earlier pass took them
+        try:
+            results = push_together([job[:3] for job in jobs], catch_up=True)
+        except Exception:  # noqa: BLE001 - one stream's trouble must not end the others: each alone, to find it
+            results = []
+            for stream, samples, rate, _ in jobs:
+                try:
+                    results.append(push_together([(stream, samples, rate)], catch_up=True)[0])
+                except Exception as e:  # noqa: BLE001
+                    results.append(e)
+        for (*_, future), result in zip(jobs, results):
+            settle = future.set_exception if isinstance(result, Exception) else future.set_result
+            loop.call_soon_threadsafe(lambda f=future, s=settle, r=result: f.done() or s(r))
+
+
 class LiveServer:
-    """The server's state: one pipeline, ``workers`` threads running the streams' updates (one stream's
-    updates always one after another; the model's weights are held, never swapped, so updates of different
-    streams may run at once)."""
+    """The server's state: one pipeline, the streams' updates drawn together in batched passes
+    (:class:`UpdateBatcher`), and ``workers`` threads for the rest (a stream's last frames, neutral
+    references); one stream's updates always one after another."""
 
     def __init__(self, pipe: GesturePipeline, workers: int = 1, limits: LiveLimits | None = None) -> None:
         self.pipe = pipe
+        self.batcher = UpdateBatcher()
         self.worker = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="emogesture-live")
         self.limits = limits or LiveLimits()
         self.streams = 0  # connections admitted and not yet closed
@@ -318,8 +359,7 @@ class LiveServer:
                 if whole:
                     samples = np.frombuffer(bytes(audio[:whole]), "<i2").astype(np.float32) / 32768.0
                     del audio[:whole]
-                    push = partial(stream.push, samples, rate, catch_up=True)
-                    frames = await loop.run_in_executor(self.worker, push)
+                    frames = await self.batcher.push(stream, samples, rate)
                     if frames:
                         await connection.send(frames_message(frames, self.pipe.fps, skeleton, stream.seconds))
                     if len(audio) >= 2:

@@ -46,7 +46,7 @@ from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.postprocess import residual_weights
 from emogesture.types import EMOTIONS, SMPLXSequence
 
-__all__ = ["GestureStream", "StreamFrames", "StreamSettings"]
+__all__ = ["GestureStream", "StreamFrames", "StreamSettings", "push_together"]
 
 
 @dataclass(frozen=True)
@@ -75,6 +75,54 @@ class StreamFrames:
 
     def __len__(self) -> int:
         return self.sequence.num_frames
+
+
+@dataclass
+class _Update:
+    """One stream's update up to its draws: the conditions ``[K, ...]`` each, seeds and sound weights of its
+    ``K`` candidates, the frame it reaches (``target``), how many frames it sends (``new``) and the window's
+    speech latents (for the face)."""
+
+    conds: list[np.ndarray]
+    seeds: list[int]
+    sound: np.ndarray
+    target: int
+    new: int
+    enc: object
+
+
+def draw_together(pipe: GesturePipeline, plans: list[_Update]) -> list[np.ndarray]:
+    """The draws ``[K, T, D]`` of each update of ``plans`` (of streams on ``pipe``), all in one batched pass."""
+    conds = [np.concatenate([p.conds[i] for p in plans]) for i in range(len(plans[0].conds))]
+    drawn = pipe.generate_windows(conds, [s for p in plans for s in p.seeds],
+                                  sound=np.concatenate([p.sound for p in plans]))
+    return np.split(drawn, np.cumsum([len(p.seeds) for p in plans])[:-1])
+
+
+def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up: bool = False
+                  ) -> list[list[StreamFrames]]:
+    """Each job's samples pushed into its stream (``(stream, samples [N], sample_rate)``, as
+    :meth:`GestureStream.push`; one job per stream, all on one pipeline): the updates that fall due together
+    are drawn in one batched pass (the speech encoders per stream, the diffusion draws and their decoding for
+    all at once). Returns each job's frames."""
+    rests = []
+    for stream, samples, rate in jobs:
+        x = np.asarray(samples, np.float32).reshape(-1)
+        rests.append(resample(x, rate, TARGET_SAMPLE_RATE) if rate != TARGET_SAMPLE_RATE else x)
+    out: list[list[StreamFrames]] = [[] for _ in jobs]
+    while any(len(x) for x in rests):
+        due = []
+        for i, (stream, _, _) in enumerate(jobs):
+            if len(rests[i]):
+                rests[i], ready = stream._advance(rests[i], catch_up)
+                if ready:
+                    due.append(i)
+        plans = [(i, jobs[i][0]._plan()) for i in due]
+        drawing = [(i, plan) for i, plan in plans if plan is not None]
+        if drawing:
+            for (i, plan), drawn in zip(drawing, draw_together(jobs[drawing[0][0]][0].pipe, [p for _, p in drawing])):
+                out[i].append(jobs[i][0]._finish(plan, drawn))
+    return [[f for f in frames if len(f)] for frames in out]
 
 
 class GestureStream:
@@ -130,22 +178,23 @@ class GestureStream:
         """Mono samples ``[N]`` (float in [-1, 1]) at ``sample_rate`` -> the frames decided by the updates
         they complete (possibly none). ``catch_up``: where the samples complete several hops, update once, at
         the last (a server that fell behind spends one window on all the audio that waited), or every 9.75 s of
-        audio when more waited (an update's frames lie within its 10-s window)."""
-        x = np.asarray(samples, np.float32).reshape(-1)
-        if sample_rate != TARGET_SAMPLE_RATE:
-            x = resample(x, sample_rate, TARGET_SAMPLE_RATE)
-        out = []
+        audio when more waited (an update's frames lie within its 10-s window). :func:`push_together` does
+        the same for several streams, their updates drawn in one batched pass."""
+        return push_together([(self, samples, sample_rate)], catch_up)[0]
+
+    def _advance(self, x: np.ndarray, catch_up: bool) -> tuple[np.ndarray, bool]:
+        """Take in the samples of ``x`` (16 kHz) up to the next update: the samples left, and whether an update
+        is due now."""
         hop = int(round(self.settings.hop_seconds * TARGET_SAMPLE_RATE))
         most = max(1, int((self.window - hop) // hop))  # hops one update may cover: its frames lie in the window
-        while len(x):
-            hops = min(most, 1 + (max(0, (self.received + len(x)) // hop - self.updates - 1) if catch_up else 0))
-            room = hop * (self.updates + hops) - self.received  # samples until the update
-            piece, x = x[:room], x[room:]
-            self._append(piece)
-            if self.received == hop * (self.updates + hops):
-                self.updates += hops - 1
-                out.append(self._update())
-        return [f for f in out if len(f)]
+        hops = min(most, 1 + (max(0, (self.received + len(x)) // hop - self.updates - 1) if catch_up else 0))
+        room = hop * (self.updates + hops) - self.received  # samples until the update
+        piece, x = x[:room], x[room:]
+        self._append(piece)
+        if self.received == hop * (self.updates + hops):
+            self.updates += hops - 1
+            return x, True
+        return x, False
 
     def end(self) -> list[StreamFrames]:
         """The frames left: those of the audio since the last update."""
@@ -165,11 +214,19 @@ class GestureStream:
 
     def _update(self) -> StreamFrames:
         """Draw the window ending now and send the frames up to now, joined to the last frame sent."""
+        plan = self._plan()
+        if plan is None:
+            return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
+        return self._finish(plan, draw_together(self.pipe, [plan])[0])
+
+    def _plan(self) -> "_Update | None":
+        """The update due now, up to its draws: the window's conditions, seeds and sound (None when it has
+        no new frame to send)."""
         self.updates += 1
         target = int(round(self.seconds * self.fps))
         new = target - self.sent
         if new <= 0:
-            return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
+            return None
         enc, _ = self.pipe.encode(self.audio, perceived=False)  # a stream reports no perception
         reference = self.neutral_reference  # read once: another thread may change it
         if reference is not None:
@@ -182,9 +239,13 @@ class GestureStream:
         # the stream's own seeds: one per draw and candidate (its draws are not a recording's windows)
         seeds = [int(np.random.SeedSequence([self.seed, self.draws, c]).generate_state(1)[0]) for c in range(k)]
         weight = residual_weights(window_activity(self.audio, TARGET_SAMPLE_RATE, [0.0]))
-        drawn = self.pipe.generate_windows([np.repeat(c[:1], k, 0) for c in conds], seeds,
-                                           sound=np.repeat(weight, k))  # [K, T, D]
-        end = self.frames_per_window  # window frame `end` is the instant of frame `target`
+        return _Update(conds=[np.repeat(c[:1], k, 0) for c in conds], seeds=seeds, sound=np.repeat(weight, k),
+                       target=target, new=new, enc=enc)
+
+    def _finish(self, plan: "_Update", drawn: np.ndarray) -> StreamFrames:
+        """The update's frames from its draws ``drawn [K, T, D]``: the candidate nearest the last frame sent,
+        joined to it."""
+        new, end = plan.new, self.frames_per_window  # window frame `end` is the instant of frame `target`
         chosen = drawn[:, end - new:end]
         if self.last is None:
             frames = chosen[0]
@@ -195,11 +256,11 @@ class GestureStream:
             fade = self._fade(new)
             frames = chosen[best] + fade[:, None] * (self.last - before[best])[None]
         self.last = frames[-1].copy()
-        start, self.sent = self.sent, target
+        start, self.sent = self.sent, plan.target
         sequence = self.pipe.to_sequence(frames)
         if self.face is not None:
             sequence = face_on(sequence, self.face.frames(self.audio, TARGET_SAMPLE_RATE, start, new,
-                                                          self._emotion(enc)))
+                                                          self._emotion(plan.enc)))
         return StreamFrames(start, sequence)
 
     def _emotion(self, enc) -> np.ndarray:
