@@ -1,4 +1,4 @@
-"""Latency of `emogesture live` with the bundled model: a 60-s real recording (Debian's pocketsphinx-testdata,
+"""Latency of `emogesture live` with the bundled model: a 60-s real recording (the packaged real speech,
 joined) streamed at the pace of speech in 100-ms chunks by 1 and by 4 clients at once; per client, the seconds
 from sending the audio of an instant to receiving its frame (median, 95th percentile), and the frames' count.
 
@@ -8,7 +8,9 @@ after each minute (no growth expected: the stream keeps a fixed 10-s buffer and 
 
 ``--face``: every stream asks for the face too (52 ARKit weights per frame).
 
-Usage: python bench/live.py [--streams 1 4] [--long 10] [--face] [--out bench/results/live.md]
+``--seconds``: each stream's length (default 60); the server's resident memory is read after each row.
+
+Usage: python bench/live.py [--streams 1 4] [--seconds 60] [--long 10] [--face] [--out bench/results/live.md]
 """
 
 from __future__ import annotations
@@ -33,16 +35,26 @@ from emogesture.data.real_speech import RECORDINGS, load_real_recording
 from emogesture.live.client import stream_file
 
 
-def minute_of_real_speech(folder: Path) -> Path:
-    wave = np.concatenate([load_real_recording(r) for r in (*RECORDINGS, RECORDINGS[0])])[: 60 * 16000]
-    path = folder / "minute.wav"
+def real_speech(folder: Path, seconds: float = 60.0) -> Path:
+    """The packaged real recordings joined (repeated as needed) into one of ``seconds`` seconds."""
+    wave = np.concatenate([load_real_recording(r) for r in RECORDINGS])
+    wave = np.resize(wave, int(seconds * 16000))
+    path = folder / "speech.wav"
     sf.write(path, wave, 16000)
     return path
+
+
+def server_memory_mb(pid: int) -> tuple[float, float]:
+    """The server process's resident memory now and at its peak (MB)."""
+    with open(f"/proc/{pid}/status") as f:
+        fields = dict(line.split(":", 1) for line in f if ":" in line)
+    return int(fields["VmRSS"].split()[0]) / 1024, int(fields["VmHWM"].split()[0]) / 1024
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--streams", type=int, nargs="+", default=[1, 4])
+    ap.add_argument("--seconds", type=float, default=60.0, help="length of each stream's recording (s)")
     ap.add_argument("--long", type=float, default=10.0, help="minutes of the long stream (0: none)")
     ap.add_argument("--face", action="store_true", help="every stream with a face (52 ARKit weights a frame)")
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
@@ -63,7 +75,7 @@ def main() -> None:
                     break
                 time.sleep(1)
         with tempfile.TemporaryDirectory() as work:
-            clip = minute_of_real_speech(Path(work))
+            clip = real_speech(Path(work), args.seconds)
             rows = []
             for n in args.streams:
                 async def run_all():
@@ -72,18 +84,22 @@ def main() -> None:
                 results = asyncio.run(run_all())
                 lat = np.concatenate([r.latency for r in results])
                 frames = sorted({len(r.poses) for r in results})
-                rows.append(f"| {n} | {np.median(lat):.3f} | {np.quantile(lat, 0.95):.3f} | {lat.max():.3f} | "
-                            f"{', '.join(map(str, frames))} |")
+                worst = max(np.quantile(r.latency, 0.95) for r in results)
+                rss, peak = server_memory_mb(server.pid)
+                rows.append(f"| {n} | {np.median(lat):.3f} | {np.quantile(lat, 0.95):.3f} | {worst:.3f} | {lat.max():.3f} | "
+                            f"{', '.join(map(str, frames))} | {rss:.0f} ({peak:.0f}) |")
                 print(rows[-1], flush=True)
     finally:
         os.killpg(server.pid, signal.SIGTERM)
     text = ("# emogesture live: latency on this machine\n\n"
-            f"`python bench/live.py` ({os.cpu_count()} CPU cores; the bundled model; a 60-s real recording streamed "
-            "at the pace of speech in 100-ms chunks per client" + ("; each stream with a face" if args.face else "")
-            + "). Latency: from the client sending the audio of an "
-            "instant to it receiving the frame of that instant.\n\n"
-            "| streams at once | median (s) | 95th percentile (s) | largest (s) | frames per stream |\n"
-            "|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+            f"`python bench/live.py` ({os.cpu_count()} CPU cores, the clients on the same cores; the bundled model; a "
+            f"{args.seconds:g}-s real recording streamed at the pace of speech in 100-ms chunks per client"
+            + ("; each stream with a face" if args.face else "") + "). Latency: from the client sending the audio of "
+            "an instant to it receiving the frame of that instant; median and 95th percentile over every stream's "
+            "frames, the worst stream's 95th percentile; the server's resident memory after the run (its peak so "
+            "far).\n\n"
+            "| streams at once | median (s) | 95th percentile (s) | worst stream's p95 (s) | largest (s) | frames per "
+            "stream | server memory, MB |\n|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
     if args.long > 0:
         text += long_stream(args.long)
     write_text_atomic(args.out, text)

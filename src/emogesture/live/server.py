@@ -199,13 +199,14 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
 
 class UpdateBatcher:
     """The streams' audio that waits together becomes frames in one batched pass: each stream's push joins a
-    queue, and one thread takes everything queued at once (:func:`~emogesture.pipeline.stream.push_together`),
-    so that the more streams wait, the larger and cheaper per stream each pass is."""
+    queue, and a free one of ``threads`` threads takes everything queued at once
+    (:func:`~emogesture.pipeline.stream.push_together`), so that the more streams wait, the larger and cheaper
+    per stream each pass is, while another pass may run beside it."""
 
-    def __init__(self) -> None:
+    def __init__(self, threads: int = 1) -> None:
         self.queue: list[tuple] = []
         self.lock = threading.Lock()
-        self.thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="emogesture-live-batch")
+        self.thread = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="emogesture-live-batch")
 
     async def push(self, stream: GestureStream, samples: np.ndarray, rate: int) -> list[StreamFrames]:
         """``stream.push(samples, rate, catch_up=True)``, drawn together with the other streams' that wait."""
@@ -242,7 +243,7 @@ class LiveServer:
 
     def __init__(self, pipe: GesturePipeline, workers: int = 1, limits: LiveLimits | None = None) -> None:
         self.pipe = pipe
-        self.batcher = UpdateBatcher()
+        self.batcher = UpdateBatcher(workers)
         self.worker = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="emogesture-live")
         self.limits = limits or LiveLimits()
         self.streams = 0  # connections admitted and not yet closed

@@ -170,14 +170,8 @@ class SpeechLatentEncoder:
         if perception_semitones < 0:
             raise ValueError(f"perception_semitones must be ≥ 0, got {perception_semitones}")
         starts = window_starts(len(waveform) / sample_rate, 10.0, hop_seconds).tolist()
-        frames = [int(round(s * FBANK_RATE)) for s in starts]
         with maybe_stage(times, "fbank"):
-            fb, silence_s = self._filled(kaldi_fbank(waveform, self.fbank_config))
-            strength = 0.0
-            if noise_suppression and self.noise_suppression is not None:
-                strength = suppression_strength(fb, self.noise_suppression)
-            windows = self._heard_windows(fb, frames, strength)
-            timing = timing_stream(windows, lengths=[len(fb) - f for f in frames])
+            windows, timing, strength, silence_s = self._windows_of(waveform, starts, noise_suppression)
         with maybe_stage(times, "speech encoders"):
             enc = self.encode_windows(windows, progress=progress, parts=parts)
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
@@ -209,6 +203,31 @@ class SpeechLatentEncoder:
             enc.shifted_emotion = np.stack([e.emotion for e in shifted])
             enc.shifted_logits = np.stack([e.emotion_logits for e in shifted])
         return enc, starts
+
+    def _windows_of(self, waveform: np.ndarray, starts: list[float], noise_suppression: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """A 16 kHz recording's windows starting at ``starts`` (s) as the encoders hear them ``[W, T, n_mels]``,
+        their timing stream, the share of its steady noise taken out and the seconds of digital silence filled."""
+        frames = [int(round(s * FBANK_RATE)) for s in starts]
+        fb, silence_s = self._filled(kaldi_fbank(waveform, self.fbank_config))
+        strength = 0.0
+        if noise_suppression and self.noise_suppression is not None:
+            strength = suppression_strength(fb, self.noise_suppression)
+        windows = self._heard_windows(fb, frames, strength)
+        return windows, timing_stream(windows, lengths=[len(fb) - f for f in frames]), strength, silence_s
+
+    def encode_each(self, waveforms: list[np.ndarray], noise_suppression: bool = True) -> list[EncodedWindows]:
+        """Several 16 kHz recordings of at most 10 s each (a live stream's newest window, say) -> the latents of
+        each's one window, the encoders run once for all of them (as :meth:`encode` hears each, without its
+        extra hearings)."""
+        heard = [self._windows_of(np.asarray(w, np.float32), [0.0], noise_suppression) for w in waveforms]
+        enc = self.encode_windows(np.concatenate([h[0] for h in heard]))
+        out = []
+        for k, (_, timing, strength, silence_s) in enumerate(heard):
+            one = EncodedWindows(*(getattr(enc, name)[k:k + 1] for name in EncodedWindows.stored))
+            one.timing, one.noise_suppressed, one.digital_silence_s = timing, strength, silence_s
+            out.append(one)
+        return out
 
     def _filled(self, fb: torch.Tensor) -> tuple[torch.Tensor, float]:
         """A recording's raw fbank with its digital silence filled (unless ``fill_digital_silence`` is off), and

@@ -117,10 +117,13 @@ def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up:
                 rests[i], ready = stream._advance(rests[i], catch_up)
                 if ready:
                     due.append(i)
-        plans = [(i, jobs[i][0]._plan()) for i in due]
-        drawing = [(i, plan) for i, plan in plans if plan is not None]
+        drawing = [i for i in due if jobs[i][0]._start_update() > 0]  # those with frames to send
         if drawing:
-            for (i, plan), drawn in zip(drawing, draw_together(jobs[drawing[0][0]][0].pipe, [p for _, p in drawing])):
+            pipe = jobs[drawing[0]][0].pipe
+            heard = pipe.speech.encode_each([jobs[i][0].audio for i in drawing],
+                                            noise_suppression=pipe.generation.noise_suppression)
+            plans = [jobs[i][0]._plan(enc) for i, enc in zip(drawing, heard)]
+            for i, plan, drawn in zip(drawing, plans, draw_together(pipe, plans)):
                 out[i].append(jobs[i][0]._finish(plan, drawn))
     return [[f for f in frames if len(f)] for frames in out]
 
@@ -214,20 +217,22 @@ class GestureStream:
 
     def _update(self) -> StreamFrames:
         """Draw the window ending now and send the frames up to now, joined to the last frame sent."""
-        plan = self._plan()
-        if plan is None:
+        if self._start_update() <= 0:
             return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
+        enc = self.pipe.speech.encode_each([self.audio], noise_suppression=self.pipe.generation.noise_suppression)
+        plan = self._plan(enc[0])
         return self._finish(plan, draw_together(self.pipe, [plan])[0])
 
-    def _plan(self) -> "_Update | None":
-        """The update due now, up to its draws: the window's conditions, seeds and sound (None when it has
-        no new frame to send)."""
+    def _start_update(self) -> int:
+        """Count the update due now; the frames it is to send (0: none yet)."""
         self.updates += 1
+        return int(round(self.seconds * self.fps)) - self.sent
+
+    def _plan(self, enc) -> "_Update":
+        """The update due now, up to its draws, from the window's speech latents ``enc`` (as
+        ``pipe.encode(self.audio, perceived=False)`` gives them): its conditions, seeds and sound."""
         target = int(round(self.seconds * self.fps))
         new = target - self.sent
-        if new <= 0:
-            return None
-        enc, _ = self.pipe.encode(self.audio, perceived=False)  # a stream reports no perception
         reference = self.neutral_reference  # read once: another thread may change it
         if reference is not None:
             enc = reference.relative(enc)
