@@ -6,6 +6,8 @@ import sys
 from pathlib import Path
 from typing import NamedTuple
 
+import time
+
 import numpy as np
 import soundfile as sf
 import torch
@@ -190,3 +192,22 @@ def experiment_module(name: str):
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def wait_for_server(port, running, timeout, interval=0.5):
+    """Whether the server on 127.0.0.1:``port`` answers HTTP (any status) before ``timeout`` seconds pass
+    while ``running()`` holds."""
+    import urllib.error
+    import urllib.request
+
+    deadline = time.time() + timeout
+    while True:
+        try:
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/nothing", timeout=2)
+            return True
+        except urllib.error.HTTPError:
+            return True  # it answers
+        except OSError:
+            if not running() or time.time() > deadline:
+                return False
+            time.sleep(interval)

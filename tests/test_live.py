@@ -11,8 +11,6 @@ import socket
 import subprocess
 import sys
 import time
-import urllib.error
-import urllib.request
 
 import numpy as np
 import pytest
@@ -20,7 +18,7 @@ import soundfile as sf
 
 from emogesture.assets import DEMO_CLIPS
 
-from helpers import canvas_pixels, ended, headless_chromium, require_chromium
+from helpers import canvas_pixels, ended, headless_chromium, require_chromium, wait_for_server
 
 pytestmark = pytest.mark.training
 websockets = pytest.importorskip("websockets")
@@ -34,17 +32,9 @@ def server(tmp_path_factory):
         port = s.getsockname()[1]
     proc = subprocess.Popen(["timeout", "600", sys.executable, "-m", "emogesture.cli.main", "live", "--port",
                              str(port)], stdout=open(work / "server.log", "w"), stderr=subprocess.STDOUT, start_new_session=True)
-    deadline = time.time() + 120
-    while True:
-        try:
-            urllib.request.urlopen(f"http://127.0.0.1:{port}/nothing", timeout=2)
-        except urllib.error.HTTPError:
-            break  # it answers
-        except OSError:
-            if proc.poll() is not None or time.time() > deadline:
-                os.killpg(proc.pid, signal.SIGTERM)
-                pytest.fail(f"the live server did not start: {(work / 'server.log').read_text()[-2000:]}")
-            time.sleep(0.5)
+    if not wait_for_server(port, lambda: proc.poll() is None, 120):
+        os.killpg(proc.pid, signal.SIGTERM)
+        pytest.fail(f"the live server did not start: {(work / 'server.log').read_text()[-2000:]}")
     wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
     clip = work / "clip.wav"
     sf.write(clip, wave[: int(7.3 * sr)], sr)
@@ -259,18 +249,23 @@ def test_bad_clients_get_one_line_errors_and_the_server_carries_on(server):
     assert proc.poll() is None
 
 
+def page_with_microphone(tmp_path):
+    """Headless chromium whose fake microphone plays the demo's speech."""
+    require_chromium()
+    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
+    microphone = tmp_path / "microphone.wav"
+    sf.write(microphone, wave, sr, subtype="PCM_16")
+    return headless_chromium("--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
+                             f"--use-file-for-fake-audio-capture={microphone}", size="1100,1000")
+
+
 def test_the_page_streams_a_fake_microphone_and_the_mannequin_moves(server, tmp_path):
     """Headless chromium with a fake microphone fed from a WAV file opens the page, streams, and the
     mannequin's canvas changes while frames arrive; the measured latency is on the page."""
     from selenium.webdriver.support.ui import WebDriverWait
 
-    require_chromium()
     url, clip, proc = server
-    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
-    microphone = tmp_path / "microphone.wav"
-    sf.write(microphone, wave, sr, subtype="PCM_16")
-    driver = headless_chromium("--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
-                               f"--use-file-for-fake-audio-capture={microphone}", size="1100,1000")
+    driver = page_with_microphone(tmp_path)
 
     def canvas():
         return canvas_pixels(driver, "#view")
@@ -321,13 +316,8 @@ def test_the_page_shows_the_face_a_stream_sends(server, tmp_path):
     face and draws it: the canvas changes where the face is hidden again."""
     from selenium.webdriver.support.ui import WebDriverWait
 
-    require_chromium()
     url, clip, proc = server
-    wave, sr = sf.read(DEMO_CLIPS / "talk.flac", dtype="float32")
-    microphone = tmp_path / "microphone.wav"
-    sf.write(microphone, wave, sr, subtype="PCM_16")
-    driver = headless_chromium("--use-fake-ui-for-media-stream", "--use-fake-device-for-media-stream",
-                               f"--use-file-for-fake-audio-capture={microphone}", size="1100,1000")
+    driver = page_with_microphone(tmp_path)
     try:
         driver.get(url.replace("ws://", "http://").removesuffix("/live") + "/")
         WebDriverWait(driver, 60).until(lambda d: d.execute_script(

@@ -21,7 +21,7 @@ import soundfile as sf
 from emogesture.access import TokenCheck, needs_token, same_origin, server_token, with_token, without_token
 from emogesture.errors import EmogestureError
 
-from helpers import ended, headless_chromium, require_chromium, speech_like, write_tiny_runs
+from helpers import ended, headless_chromium, require_chromium, speech_like, wait_for_server, write_tiny_runs
 
 websockets = pytest.importorskip("websockets")
 
@@ -57,15 +57,7 @@ def live_server(pipe, **options):
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
-    deadline = time.time() + 30
-    while True:
-        try:
-            urllib.request.urlopen(f"http://127.0.0.1:{port}/nothing", timeout=2)
-        except urllib.error.HTTPError:
-            break  # it answers
-        except OSError:
-            assert thread.is_alive() and time.time() < deadline, "the live server did not start"
-            time.sleep(0.05)
+    assert wait_for_server(port, thread.is_alive, 30, interval=0.05), "the live server did not start"
     try:
         yield port
     finally:

@@ -21,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu, cuda or cuda:N")
     p.add_argument("--precision", default="auto", choices=["auto", "fp32", "bf16"], help="as for generate")
     p.add_argument("--workers", type=int, default=None,
-                   help="threads drawing the streams' updates (default: one per CPU core, at most 4)")
+                   help="threads drawing the streams' updates, each pass for every stream that waits (default: one "
+                   "per CPU core, at most 4)")
     p.add_argument("--token", metavar="SECRET",
                    help="the token clients must give as ?token=SECRET (needed beyond 127.0.0.1: without it one is "
                    "made and printed with the page's URL; given on 127.0.0.1, enforced there too)")
