@@ -27,7 +27,6 @@ import numpy as np
 import torch
 
 from emogesture.errors import EmogestureError
-from emogesture.export.raster import draw_capsules, rgb_to_yuv420
 from emogesture.fileio import atomic_output
 from emogesture.motion import JOINT_NAMES, SkeletonBody, rest_joints
 from emogesture.types import ARKIT_NAMES, SMPLXSequence
@@ -198,6 +197,8 @@ class MannequinRenderer:
     def draw(self, joints: np.ndarray, camera: Camera, face: np.ndarray | None = None) -> np.ndarray:
         """One frame: joint positions ``[55, 3]`` (and its 52 ARKit weights, or None) -> RGB ``[H, W, 3]``
         uint8."""
+        from emogesture.export.raster import draw_capsules  # numba: loaded when a video is drawn, not at import
+
         img = self.background.copy()
         zbuf = np.full((self.height, self.width), -np.inf, np.float32)
         draw_capsules(img, zbuf, self.capsules(joints, camera, face), _LIGHT, _HALF)
@@ -280,6 +281,8 @@ def _paste(frame: np.ndarray, colour: np.ndarray, keep: np.ndarray, x: int = 8, 
 
 def to_yuv420(frame: np.ndarray) -> np.ndarray:
     """An RGB frame ``[H, W, 3]`` uint8 -> its yuv420p bytes ``[H * W * 3 // 2]`` uint8 (BT.601 limited)."""
+    from emogesture.export.raster import rgb_to_yuv420
+
     out = np.empty(frame.shape[0] * frame.shape[1] * 3 // 2, np.uint8)
     rgb_to_yuv420(frame, out)
     return out

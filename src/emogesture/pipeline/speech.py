@@ -196,6 +196,7 @@ class SpeechLatentEncoder:
             for semitones in (perception_semitones, -perception_semitones):
                 with maybe_stage(times, "fbank"):
                     moved = voice_shift(np.asarray(waveform, np.float64), semitones).astype(np.float32)
+                    frames = [int(round(s * FBANK_RATE)) for s in starts]
                     heard = self._heard_windows(self._filled(kaldi_fbank(moved, self.fbank_config))[0], frames,
                                                 strength)
                 with maybe_stage(times, "speech encoders"):
