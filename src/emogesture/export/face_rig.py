@@ -182,7 +182,6 @@ def _face_rig(key: bytes, n: int) -> dict[str, np.ndarray]:
 
     # the nose: a wedge from the bridge to the tip and its two wings
     yn = lo + 0.36 * h
-    zn = float(z_of(cx, yn))
     t = np.linspace(0.0, 1.0, 6)[:, None]  # bridge (0) to tip (1)
     across = np.linspace(-1.0, 1.0, 7)[None]
     x = cx + 0.075 * h * across * (0.4 + 0.6 * t)

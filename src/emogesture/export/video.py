@@ -122,7 +122,7 @@ def face_primitives(centre: np.ndarray, up: np.ndarray, fwd: np.ndarray, face: n
     depth = np.sqrt(np.maximum(1.0 - (offsets ** 2).sum(-1) / HEAD_RADIUS ** 2, 0.0))[..., None]
     d = fwd * depth + (left * offsets[..., :1] + up * offsets[..., 1:]) / HEAD_RADIUS
     d /= np.linalg.norm(d, axis=-1, keepdims=True).clip(1e-9)
-    ends = centre + (HEAD_RADIUS - 0.3 * radius)[:, None, None] * d + (lift[:, None, None] - 0.0) * fwd
+    ends = centre + (HEAD_RADIUS - 0.3 * radius)[:, None, None] * d + lift[:, None, None] * fwd
     return [(ends[k, 0], ends[k, 1], float(radius[k]), parts[k][3]) for k in range(len(parts))]
 
 

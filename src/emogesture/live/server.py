@@ -43,9 +43,9 @@ Protocol, on ``ws://HOST:PORT/live`` (every text message is one JSON object):
    it with code 1008.
 
 Streams share one pipeline; the updates of every stream whose audio waits are drawn together in one batched
-pass (the speech encoders per stream, the diffusion draws and their decoding for all at once; one stream's
-updates one after another), while each connection's messages are read as they arrive. A stream whose audio
-waited while a pass ran is updated once for all of it (its frames then come in a larger batch), so a loaded
+pass (the speech encoders, the diffusion draws and their decoding for all at once, each stream's filterbank
+on its own; one stream's updates one after another), while each connection's messages are read as they
+arrive. A stream whose audio waited while a pass ran is updated once for all of it (its frames then come in a larger batch), so a loaded
 server falls behind by a bounded amount instead of without end.
 """
 
@@ -223,14 +223,9 @@ class UpdateBatcher:
         if not jobs:
             return  # an earlier pass took them
         try:
-            results = push_together([job[:3] for job in jobs], catch_up=True)
-        except Exception:  # noqa: BLE001 - one stream's trouble must not end the others: each alone, to find it
-            results = []
-            for stream, samples, rate, _ in jobs:
-                try:
-                    results.append(push_together([(stream, samples, rate)], catch_up=True)[0])
-                except Exception as e:  # noqa: BLE001
-                    results.append(e)
+            results: list = push_together([job[:3] for job in jobs], catch_up=True)
+        except Exception as e:  # noqa: BLE001 - the pass's streams are told; the server and other passes go on
+            results = [e] * len(jobs)  # (not retried alone: the pass may have taken in some of their audio)
         for (*_, future), result in zip(jobs, results):
             settle = future.set_exception if isinstance(result, Exception) else future.set_result
             loop.call_soon_threadsafe(lambda f=future, s=settle, r=result: f.done() or s(r))
@@ -238,8 +233,8 @@ class UpdateBatcher:
 
 class LiveServer:
     """The server's state: one pipeline, the streams' updates drawn together in batched passes
-    (:class:`UpdateBatcher`), and ``workers`` threads for the rest (a stream's last frames, neutral
-    references); one stream's updates always one after another."""
+    (:class:`UpdateBatcher`, ``workers`` passes at once), and ``workers`` threads for the rest (a stream's
+    last frames, neutral references); one stream's updates always one after another."""
 
     def __init__(self, pipe: GesturePipeline, workers: int = 1, limits: LiveLimits | None = None) -> None:
         self.pipe = pipe

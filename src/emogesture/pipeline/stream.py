@@ -103,8 +103,8 @@ def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up:
                   ) -> list[list[StreamFrames]]:
     """Each job's samples pushed into its stream (``(stream, samples [N], sample_rate)``, as
     :meth:`GestureStream.push`; one job per stream, all on one pipeline): the updates that fall due together
-    are drawn in one batched pass (the speech encoders per stream, the diffusion draws and their decoding for
-    all at once). Returns each job's frames."""
+    are drawn in one batched pass (each stream's filterbank on its own; the speech encoders, the diffusion draws
+    and their decoding for all at once). Returns each job's frames."""
     rests = []
     for stream, samples, rate in jobs:
         x = np.asarray(samples, np.float32).reshape(-1)
