@@ -201,8 +201,9 @@ def ravdess_section(path: Path) -> str:
 ## Real emotional speech: RAVDESS's held-out actors (test)
 
 What is heard is read off the encoder of Whisper tiny.en (a front end trained by OpenAI on a great deal of real
-speech, never on emotion; MIT) by a logistic regression fitted on the synthetic corpus's train takes and
-RAVDESS's train actors (18 of 24; calm left out); its val actors ({RAVDESS_VAL}) chose its regularisation, its
+speech, never on emotion; MIT) by a logistic regression fitted on the synthetic corpus's train takes,
+RAVDESS's train actors (18 of 24; calm left out) and, as neutral, sixteen real voices reading without acted
+emotion (the Debian packages' telephone prompts and letter readers); its val actors ({RAVDESS_VAL}) chose its regularisation, its
 test actors ({RAVDESS_TEST}) were scored once, here. Each actor's clips of one emotion are joined into one
 recording and heard window by window as `generate` hears them (10-s windows every 7 s; calm counted as
 neutral). **The emotion is heard right in {r['accuracy']:.1%} of {r['windows']} windows** (chance 14 %;
@@ -246,11 +247,12 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     shift_how = ("; measured before the front end trained on real speech heard the windows the perception does "
                  f"not trust, each window heard three times, the voice also moved {semitones:g} semitones up and down"
                  if perception.get("heard") and not shift.get("front_end") and semitones else "")
-    hearings_text = (" Where the perception does not trust a window fully, the front end trained on real speech "
-                     "hears it (of a run of such windows, one every 20 s, the first and the last, those between "
-                     "interpolated) and what it hears is the emotion reported and, where the trust is low, the one "
-                     "animated; the voice is not heard again moved in pitch (that serves models without the front "
-                     "end's read-out)." if perception.get("heard") else
+    hearings_text = (" The front end trained on real speech hears the recording as well (one window every 20 s, "
+                     "those between interpolated), and the two readings are multiplied: in a window the perception "
+                     "trusts fully, the speech model's log-probabilities plus half the front end's, elsewhere the "
+                     "front end's plus a quarter of the speech model's; where the trust is low, what the front end "
+                     "hears is the emotion animated. The voice is not heard again moved in pitch (that serves models "
+                     "without the front end's read-out)." if perception.get("heard") else
                      f" The emotion a window is heard as is the mean of three hearings: as recorded and with the "
                      f"voice moved {semitones:g} semitones up and down (the generation setting "
                      "`perception_semitones`), so a voice pitched unlike the training voices is not read by its "

@@ -44,6 +44,7 @@ def test_the_bundled_model_holds_the_recipe():
     heard = speech_file["extra"]["emotion_perception"].get("heard")  # the front end's read-out, with RAVDESS
     if heard is not None:
         assert recipe.perception.get("front_end") == "whisper" and heard["info"]["labelled"]
+        assert heard["info"].get("neutral_voices", []) == recipe.perception.get("front_end_neutral_voices", [])
     gesture = load_model(bundled_model_file("gesture"), "gesture")
     gesture_stage = recipe.stage("gesture")
     assert to_dict(gesture.config) == to_dict(stage_config(recipe, gesture_stage).model)
@@ -78,7 +79,9 @@ def test_a_broken_recipe_is_one_line_naming_the_file(tmp_path):
     for text, message in (("stages: [{name: a, model: face, steps: 1}]", "model must be one of"),
                           ("stages: [{name: a, model: speech, steps: 1, from: b}]", "'b' is not an earlier stage"),
                           ("stages: [{name: a, model: speech, step: 1}]", "stage 'a'"),
-                          ("stages: 3", "a list of stages"), ("stages: [", "not valid YAML")):
+                          ("stages: 3", "a list of stages"), ("stages: [", "not valid YAML"),
+                          ("stages: []\nperception: {front_end: whisper, front_end_neutral_voices: [words_en]}",
+                           "words_en not among the training voices")):
         bad.write_text(text)
         with pytest.raises(InputFileError, match=message) as e:
             load_recipe(bad)

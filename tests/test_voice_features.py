@@ -2,6 +2,8 @@
 round trip, emotions it never saw), what ``auto`` gives the gesture model from what it hears, and the front end
 itself on speech (where its packages are installed)."""
 
+from dataclasses import replace
+
 import numpy as np
 import torch
 import pytest
@@ -73,15 +75,28 @@ def test_auto_blends_toward_the_emotion_heard():
                        atol=1e-4)
     enc = EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4)), heard_features=x[:3])
     front = heard_by_front_end(enc, perception)
-    assert front is not None and np.allclose(heard_probabilities(enc, perception), front)
+    alone = heard_probabilities(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception)
+
+    def product(a, b, share):  # a's probabilities times b's to the power share, renormalised
+        log = np.log(np.maximum(a, 1e-30)) + share * np.log(np.maximum(b, 1e-30))
+        p = np.exp(log - log.max(1, keepdims=True))
+        return p / p.sum(1, keepdims=True)
+
+    # untrusted windows: the front end's reading, times the speech model's to a quarter
+    assert front is not None and np.allclose(heard_probabilities(enc, perception), product(front, alone, 0.25))
+    assert not np.allclose(heard_probabilities(enc, perception), alone)
     assert heard_by_front_end(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception) is None
-    # a window the front end did not hear (the encoder hears only the untrusted ones) is read by the latents
+    # trusted windows: the speech model's reading, times the front end's to a half
+    trusting = EmotionPerception(list(EMOTIONS), replace(r, threshold=1e9), replace(r, threshold=1e9), {},
+                                 heard=perception.heard)
+    assert np.allclose(heard_probabilities(enc, trusting),
+                       product(heard_probabilities(replace(enc, heard_features=None), trusting), front, 0.5))
+    # a window the front end did not hear is read by the latents alone
     partly = x[:3].copy()
     partly[0] = np.nan
     enc = EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4)), heard_features=partly)
-    alone = heard_probabilities(EncodedWindows(far, far, far, np.zeros((3, 8)), np.zeros((3, 4))), perception)
     probs = heard_probabilities(enc, perception)
-    assert np.allclose(probs[0], alone[0]) and np.allclose(probs[1:], front[1:])
+    assert np.allclose(probs[0], alone[0]) and np.allclose(probs[1:], product(front, alone, 0.25)[1:])
     moved = auto_emotion(far, far, perception, heard_by_front_end(enc, perception))
     assert np.isfinite(moved).all() and np.allclose(moved[0], perception.neutral(), atol=1e-4)
 

@@ -134,7 +134,7 @@ class GesturePipeline:
         source needs fewer); ``generation``: the settings (None: the pipeline's; their ``noise_suppression``
         and ``perception_semitones``); ``perceived`` False: only the latents are wanted, not what
         :meth:`perceive` reads, so the recording is heard once; ``front_end``: whether the front end trained on
-        real speech hears the windows the perception does not trust (None: when ``perceived``)."""
+        real speech hears the windows too (None: when ``perceived``)."""
         settings = generation or self.generation
         return self.speech.encode(waveform, TARGET_SAMPLE_RATE, settings.hop_seconds, progress, times, parts,
                                   noise_suppression=settings.noise_suppression,

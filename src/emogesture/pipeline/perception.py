@@ -37,6 +37,11 @@ def perception_of(encoder: SpeechLatentEncoder) -> EmotionPerception | None:
     return encoder.perception
 
 
+#: how the two read-outs are combined where the front end heard a window (:func:`heard_probabilities`): the
+#: log-probabilities of the read-out the perception leans on plus this share of the other's
+OTHER_READOUT_WEIGHT = {"trusted": 0.5, "untrusted": 0.25}
+
+
 def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | None,
                         relative: EncodedWindows | None = None) -> np.ndarray:
     """``[W, 8]`` over EMOTIONS: what the windows of ``enc`` sound like, :meth:`EmotionPerception.read` (the
@@ -44,9 +49,13 @@ def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | Non
     where the encoder heard them so (``EncodedWindows.shifted_emotion``), and with ``relative``, the same
     windows read against a neutral reference (:mod:`emogesture.pipeline.neutral_reference`), heard alike:
     the mean of both. Where the front end trained on real speech heard the windows (:func:`heard_by_front_end`),
-    it decides in every window the perception does not trust fully: a voice like the training voices is read by
-    the speech model, one unlike them by the front end (a blend by the trust let the speech model's sharp,
-    mostly wrong readings of real actors win: 0.17 on RAVDESS's val actors)."""
+    both read-outs are multiplied: in a window the perception trusts fully, the speech model's log-probabilities
+    plus half the front end's; elsewhere the front end's plus a quarter of the speech model's
+    (:data:`OTHER_READOUT_WEIGHT`). Chosen on val against the front end deciding alone in the untrusted windows
+    (the speech model's sharp readings of a real actor are mostly wrong, so it gets the small share there),
+    mostly for what the speech model alone gets wrong within its trusted range: a recording 10 dB quieter heard
+    as contempt, and real people reading aloud (``experiments/perception/README.md``, "Who decides the
+    emotion heard")."""
     def read(emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         return np.exp(log_softmax(logits) if perception is None else perception.read(emotion, logits))
 
@@ -59,11 +68,15 @@ def heard_probabilities(enc: EncodedWindows, perception: EmotionPerception | Non
     probs = hearings(enc)
     probs = probs if relative is None else 0.5 * (probs + hearings(relative))
     front = heard_by_front_end(enc, perception)
-    if front is not None:  # the front end decides where the voice is unlike the training voices
+    if front is not None:
         animated = enc if relative is None else relative
         known = perception.trust(animated.emotion, animated.style) >= 1.0
-        known |= ~np.isfinite(front).all(1)  # (windows the front end did not hear: the encoder trusted them)
-        probs = np.where(known[:, None], probs, front)
+        speech, heard = np.log(np.maximum(probs, 1e-30)), np.log(np.maximum(front, 1e-30))
+        pooled = np.where(known[:, None], speech + OTHER_READOUT_WEIGHT["trusted"] * heard,
+                          heard + OTHER_READOUT_WEIGHT["untrusted"] * speech)
+        pooled = np.exp(pooled - pooled.max(1, keepdims=True))
+        pooled /= pooled.sum(1, keepdims=True)
+        probs = np.where(np.isfinite(front).all(1)[:, None], pooled, probs)  # (windows it did not hear: as read)
     return probs
 
 
@@ -99,7 +112,7 @@ def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerc
         return emotion
     w = perception.trust(emotion, style)[:, None]
     target = np.broadcast_to(perception.neutral()[None], emotion.shape)
-    if heard is not None:  # windows the front end did not hear (it hears the untrusted ones) keep the neutral
+    if heard is not None:  # windows the front end did not hear keep the neutral
         heard_at = np.isfinite(heard).all(1)
         target = np.where(heard_at[:, None], perception.heard_latents(np.nan_to_num(heard)), target)
     return (w * perception.in_corpus_frame(emotion) + (1.0 - w) * target).astype(np.float32)
@@ -107,8 +120,8 @@ def auto_emotion(emotion: np.ndarray, style: np.ndarray, perception: EmotionPerc
 
 def heard_by_front_end(enc: EncodedWindows, perception: EmotionPerception | None) -> np.ndarray | None:
     """``[W, 8]``: what the front end trained on real speech hears in ``enc``'s windows, where it heard them
-    (``EncodedWindows.heard_features``) and the perception reads it (NaN rows: windows it did not hear, those
-    the perception trusts fully); else None."""
+    (``EncodedWindows.heard_features``) and the perception reads it (NaN rows: windows it did not hear); else
+    None."""
     if perception is None or perception.heard is None or enc.heard_features is None:
         return None
     return np.exp(perception.heard.log_probs(enc.heard_features))

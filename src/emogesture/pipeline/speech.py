@@ -162,9 +162,9 @@ class SpeechLatentEncoder:
         formants) moved that many semitones up and down with the tempo kept, into
         ``shifted_emotion``/``shifted_logits`` (what :func:`emogesture.pipeline.perception.perceive` averages);
         the latents themselves are the recording's own. ``front_end``: where the perception has a read-out of
-        the front end trained on real speech and its packages are installed, the windows it does not trust
-        fully are heard by it too (``heard_features``; NaN rows for the windows it trusts; one every 20 s
-        heard, those between interpolated: :func:`~emogesture.pipeline.voice_features.hearing_plan`)."""
+        the front end trained on real speech and its packages are installed, the windows are heard by it too
+        (``heard_features``; one every 20 s heard, those between interpolated:
+        :func:`~emogesture.pipeline.voice_features.hearing_plan`)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         if perception_semitones < 0:
@@ -177,10 +177,8 @@ class SpeechLatentEncoder:
         enc.timing, enc.noise_suppressed, enc.digital_silence_s = timing, strength, silence_s
         hears = (front_end and self.perception is not None and self.perception.heard is not None
                  and front_end_installed())
-        if hears:  # only the windows the perception does not trust fully: it reads the rest
+        if hears:  # every window: both read-outs are multiplied (pipeline.perception.heard_probabilities)
             need = np.ones(len(starts), bool)
-            if "emotion" in parts and "style" in parts:
-                need = self.perception.trust(enc.emotion, enc.style) < 1.0
             heard, weights = hearing_plan(need, hop_seconds)
             if len(heard):  # (loaded only when a window needs it)
                 with maybe_stage(times, "voice features"), whisper_features() as hearer:

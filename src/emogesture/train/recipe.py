@@ -106,6 +106,12 @@ def load_recipe(path: str | PathLike[str]) -> Recipe:
     perception = dict(data.get("perception") or {})
     if perception.get("front_end") not in (None, "whisper"):
         raise InputFileError(path, f"perception.front_end {perception['front_end']!r}: the one known is 'whisper'")
+    from emogesture.data.real_speech import TRAINING_VOICES
+
+    unknown = [v for v in perception.get("front_end_neutral_voices", ()) if v not in TRAINING_VOICES]
+    if unknown:
+        raise InputFileError(path, f"perception.front_end_neutral_voices: {', '.join(map(str, unknown))} not among "
+                                   f"the training voices ({', '.join(TRAINING_VOICES)})")
     return Recipe(tuple(stages), perception, dict(data.get("labelled_speech") or {}), dict(data.get("generation") or {}))
 
 
@@ -179,7 +185,8 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
     if perception.get("front_end") and labelled is not None and not (run / "speech_heard" / "model.json").exists():
         from emogesture.train.heard_readout import calibrate_heard_run
 
-        calibrate_heard_run(run / "speech_calibrated", cache, labelled, run / "speech_heard")
+        calibrate_heard_run(run / "speech_calibrated", cache, labelled, run / "speech_heard",
+                            neutral_voices=tuple(perception.get("front_end_neutral_voices", ())))
     heard = run / ("speech_heard" if perception.get("front_end") and labelled is not None else "speech_calibrated")
     if not (run / "gesture_styled" / "model.json").exists():
         calibrate_fallback_run(gesture, cache, run / "gesture_styled")
