@@ -57,13 +57,15 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0, help="length of each stream's recording (s)")
     ap.add_argument("--long", type=float, default=10.0, help="minutes of the long stream (0: none)")
     ap.add_argument("--face", action="store_true", help="every stream with a face (52 ARKit weights a frame)")
+    ap.add_argument("--workers", type=int, default=None, help="the server's update threads (default: its own)")
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
     args = ap.parse_args()
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     server = subprocess.Popen([sys.executable, "-m", "emogesture.cli.main", "live", "--port", str(port),
-                               "--max-streams", str(max(args.streams))],
+                               "--max-streams", str(max(args.streams)),
+                               *(["--workers", str(args.workers)] if args.workers else [])],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
         for _ in range(120):

@@ -13,6 +13,7 @@ import soundfile as sf
 import torch
 
 from emogesture.audio import (
+    rolled_fbank,
     FBANK_MEAN,
     FBANK_STD,
     FLOAT32_EPS,
@@ -153,6 +154,21 @@ def test_sine_sweep_moves_monotonically_through_the_bins() -> None:
     expected = np.array([_htk_expected_bin(f) for f in centres])
     assert np.all(np.diff(peaks) >= -1)
     assert np.mean(np.abs(peaks - expected) <= 1) > 0.95
+
+
+def test_a_rolled_filterbank_equals_the_whole_one() -> None:
+    """A buffer that moved on by whole frame shifts reuses its frames; the result is the filterbank computed whole
+    (every frame is its own), for any shift, and a shift that cannot reuse anything is computed whole."""
+    x = speech_like(14.0, seed=3)
+    buffer = 16000 * 10
+    config = FbankConfig()
+    previous = kaldi_fbank(x[:buffer], config)
+    for shift in (160, 4000, 4160, 4001, 0, 150000, buffer + 160):
+        now = x[shift: shift + buffer] if shift + buffer <= len(x) else x[-buffer:]
+        rolled = rolled_fbank(previous, now, shift, config)
+        assert rolled.shape == (998, config.num_features)
+        assert torch.equal(rolled, kaldi_fbank(now, config)), shift
+    assert torch.equal(rolled_fbank(None, x[:buffer], 4000, config), previous)
 
 
 def test_fbank_input_handling() -> None:

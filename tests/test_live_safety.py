@@ -15,6 +15,7 @@ import time
 import urllib.error
 import urllib.request
 
+import numpy as np
 import pytest
 import soundfile as sf
 
@@ -384,3 +385,28 @@ def test_the_app_page_with_its_token_works_in_a_browser(tmp_path):
         driver.quit()
         server.should_exit = True
         thread.join(30)
+
+
+def test_a_pass_of_more_than_two_streams_is_drawn_as_a_loaded_one(monkeypatch):
+    """The batcher hands a pass of many streams to push_together as a loaded one (one candidate, fewer steps)."""
+    from emogesture.live import server as live_server
+
+    seen = []
+
+    def fake(jobs, catch_up=False, loaded=False):
+        seen.append((len(jobs), catch_up, loaded))
+        return [[] for _ in jobs]
+
+    monkeypatch.setattr(live_server, "push_together", fake)
+    batcher = live_server.UpdateBatcher(1)
+
+    async def drain(n):
+        loop = asyncio.get_running_loop()
+        futures = [loop.create_future() for _ in range(n)]
+        batcher.queue = [(object(), np.zeros(10, np.float32), 16000, f) for f in futures]
+        await loop.run_in_executor(None, batcher._drain, loop)
+        return await asyncio.gather(*futures)
+
+    for n in (1, live_server.LOADED_PASS, live_server.LOADED_PASS + 1, 12):
+        assert asyncio.run(drain(n)) == [[]] * n
+    assert seen == [(1, True, False), (2, True, False), (3, True, True), (12, True, True)]

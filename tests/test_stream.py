@@ -139,3 +139,44 @@ def test_streams_pushed_together_get_the_frames_each_gets_alone(pipe, talk):
         assert [f.start for f in got[j]] == [f.start for f in alone[j]] and len(got[j]) > 5
         together = np.concatenate([f.sequence.poses for f in got[j]])
         assert np.abs(together - np.concatenate([f.sequence.poses for f in alone[j]])).max() < 1e-3
+
+
+def test_a_streams_filterbank_rolls_on_with_its_audio(pipe, talk):
+    """Each update computes only the newest frames of its window's filterbank; what it hears is the filterbank of
+    the window computed whole, whatever the pieces."""
+    import torch
+
+    from emogesture.audio import kaldi_fbank
+
+    s = GestureStream(pipe)
+    rng = np.random.default_rng(1)
+    i = 0
+    for n in rng.integers(1, 9000, 25):
+        s.push(talk[i:i + n])
+        i += n
+        assert torch.equal(s._raw_fbank(), kaldi_fbank(s.audio, pipe.speech.fbank_config))
+
+
+def test_a_loaded_pass_draws_one_candidate_with_fewer_steps_and_joins_smoothly(pipe, talk, monkeypatch):
+    """A server with many streams draws each update once, with LOADED_STEPS DDIM steps; the motion still has a
+    frame per 1/30 s and no join rougher than the offline motion allows (as the joins test asks)."""
+    from emogesture.pipeline import stream as live
+
+    drawn = []
+    generate_windows = pipe.generate_windows
+
+    def spy(conds, seeds, **kw):
+        drawn.append((len(seeds), kw.get("generation")))
+        return generate_windows(conds, seeds, **kw)
+
+    monkeypatch.setattr(pipe, "generate_windows", spy)
+    s = GestureStream(pipe)
+    out = [f for i in range(0, len(talk), 1600) for f in live.push_together([(s, talk[i:i + 1600], 16000)],
+                                                                            loaded=True)[0]] + s.end()
+    assert drawn and all(n == 1 and g.num_inference_steps == live.LOADED_STEPS for n, g in drawn[:-1])
+    poses = np.concatenate([f.sequence.poses for f in out])
+    trans = np.concatenate([f.sequence.trans for f in out])
+    monkeypatch.undo()
+    offline = pipe.generate(talk)[0]
+    assert len(poses) == offline.num_frames
+    assert largest_jump(poses, trans) <= 1.75 * largest_jump(offline.poses, offline.trans)

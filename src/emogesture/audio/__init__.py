@@ -15,6 +15,7 @@ from emogesture.audio.fbank import (
     kaldi_fbank,
     kaldi_window,
     num_fbank_frames,
+    rolled_fbank,
 )
 from emogesture.audio.io import TARGET_SAMPLE_RATE, audio_seconds, check_speech, load_audio, resample
 from emogesture.audio.mfcc import mfcc_from_log_mel
@@ -88,6 +89,7 @@ __all__ = [
     "mel_to_hz_slaney",
     "normalise_fbank",
     "num_fbank_frames",
+    "rolled_fbank",
     "onset_strength",
     "peak_pick",
     "power_spectrum",

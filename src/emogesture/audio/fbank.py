@@ -237,6 +237,29 @@ def kaldi_fbank(
                       for i in range(0, n, FBANK_CHUNK_FRAMES)], dim=-2)
 
 
+def rolled_fbank(previous: torch.Tensor | None, waveform: np.ndarray | torch.Tensor, shift: int,
+                 config: FbankConfig | None = None) -> torch.Tensor:
+    """:func:`kaldi_fbank` of ``waveform [N]``, a buffer of fixed length that has moved on by ``shift`` samples
+    since ``previous`` (its filterbank ``[frames, bins]`` then) was computed: the frames still inside the buffer
+    are taken from ``previous`` and only the newest computed. Every frame is computed alone, so the result is
+    the same as computing it whole, which it does where nothing can be reused (no ``previous``, a ``shift``
+    that is not a whole number of frame shifts or leaves no frame in common, snip_edges off, dither). A live
+    stream's window moves by a quarter of a second at each update: its 10-s filterbank then costs 25 frames,
+    not 998."""
+    cfg = config or FbankConfig()
+    frames = num_fbank_frames(len(waveform), cfg)
+    step = cfg.frame_shift
+    s = shift // step
+    reuse = (previous is not None and cfg.snip_edges and cfg.dither == 0.0 and shift % step == 0
+             and 0 <= s < frames and previous.shape[0] == frames)
+    if not reuse:
+        return kaldi_fbank(waveform, cfg)
+    if s == 0:
+        return previous
+    newest = kaldi_fbank(waveform[step * (frames - s): step * (frames - 1) + cfg.frame_length], cfg)
+    return torch.cat([previous[s:], newest])
+
+
 def _fbank_of_frames(frames: torch.Tensor, noise: torch.Tensor | None, window: torch.Tensor, banks: torch.Tensor,
                      cfg: FbankConfig) -> torch.Tensor:
     """Steps 2-9 of the module docstring for ``frames [..., F, L]`` -> float32 ``[..., F, bins]``."""

@@ -197,11 +197,18 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
     return json.dumps({"frames": out, "audio_s": round(audio_s, 4)}, separators=(",", ":"))
 
 
+#: a pass of more streams than this is drawn as a loaded one (one candidate per update, fewer DDIM steps:
+#: :data:`~emogesture.pipeline.stream.LOADED_STEPS`): the draws and their decoding are most of a pass's cost
+#: (``experiments/live/README.md``)
+LOADED_PASS = 2
+
+
 class UpdateBatcher:
     """The streams' audio that waits together becomes frames in one batched pass: each stream's push joins a
     queue, and a free one of ``threads`` threads takes everything queued at once
     (:func:`~emogesture.pipeline.stream.push_together`), so that the more streams wait, the larger and cheaper
-    per stream each pass is, while another pass may run beside it."""
+    per stream each pass is, while another pass may run beside it; a pass of more than :data:`LOADED_PASS`
+    streams is drawn as a loaded one."""
 
     def __init__(self, threads: int = 1) -> None:
         self.queue: list[tuple] = []
@@ -223,7 +230,8 @@ class UpdateBatcher:
         if not jobs:
             return  # an earlier pass took them
         try:
-            results: list = push_together([job[:3] for job in jobs], catch_up=True)
+            results: list = push_together([job[:3] for job in jobs], catch_up=True,
+                                          loaded=len(jobs) > LOADED_PASS)
         except Exception as e:  # noqa: BLE001 - the pass's streams are told; the server and other passes go on
             results = [e] * len(jobs)  # (not retried alone: the pass may have taken in some of their audio)
         for (*_, future), result in zip(jobs, results):

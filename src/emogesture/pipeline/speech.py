@@ -203,23 +203,28 @@ class SpeechLatentEncoder:
             enc.shifted_logits = np.stack([e.emotion_logits for e in shifted])
         return enc, starts
 
-    def _windows_of(self, waveform: np.ndarray, starts: list[float], noise_suppression: bool = True
-                    ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    def _windows_of(self, waveform: np.ndarray, starts: list[float], noise_suppression: bool = True,
+                    raw_fbank: torch.Tensor | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
         """A 16 kHz recording's windows starting at ``starts`` (s) as the encoders hear them ``[W, T, n_mels]``,
-        their timing stream, the share of its steady noise taken out and the seconds of digital silence filled."""
+        their timing stream, the share of its steady noise taken out and the seconds of digital silence filled;
+        ``raw_fbank``: the recording's filterbank where the caller has it (:func:`~emogesture.audio.rolled_fbank`)."""
         frames = [int(round(s * FBANK_RATE)) for s in starts]
-        fb, silence_s = self._filled(kaldi_fbank(waveform, self.fbank_config))
+        raw = kaldi_fbank(waveform, self.fbank_config) if raw_fbank is None else raw_fbank
+        fb, silence_s = self._filled(raw)
         strength = 0.0
         if noise_suppression and self.noise_suppression is not None:
             strength = suppression_strength(fb, self.noise_suppression)
         windows = self._heard_windows(fb, frames, strength)
         return windows, timing_stream(windows, lengths=[len(fb) - f for f in frames]), strength, silence_s
 
-    def encode_each(self, waveforms: list[np.ndarray], noise_suppression: bool = True) -> list[EncodedWindows]:
+    def encode_each(self, waveforms: list[np.ndarray], noise_suppression: bool = True,
+                    raw_fbanks: list[torch.Tensor | None] | None = None) -> list[EncodedWindows]:
         """Several 16 kHz recordings of at most 10 s each (a live stream's newest window, say) -> the latents of
         each's one window, the encoders run once for all of them (as :meth:`encode` hears each, without its
-        extra hearings)."""
-        heard = [self._windows_of(np.asarray(w, np.float32), [0.0], noise_suppression) for w in waveforms]
+        extra hearings); ``raw_fbanks``: each recording's filterbank where the caller has it (None: computed)."""
+        raw_fbanks = raw_fbanks or [None] * len(waveforms)
+        heard = [self._windows_of(np.asarray(w, np.float32), [0.0], noise_suppression, fb)
+                 for w, fb in zip(waveforms, raw_fbanks)]
         enc = self.encode_windows(np.concatenate([h[0] for h in heard]))
         out = []
         for k, (_, timing, strength, silence_s) in enumerate(heard):

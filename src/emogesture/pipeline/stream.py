@@ -32,11 +32,12 @@ Example (the bundled model; 100-ms pieces of a recording, the emotion changed ha
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+import torch
 
-from emogesture.audio import TARGET_SAMPLE_RATE, resample, window_activity
+from emogesture.audio import TARGET_SAMPLE_RATE, resample, rolled_fbank, window_activity
 from emogesture.errors import EmogestureError
 from emogesture.pipeline.animate import emotion_request
 from emogesture.pipeline.face import StreamFace, face_on, heard_per_frame
@@ -91,20 +92,29 @@ class _Update:
     enc: object
 
 
-def draw_together(pipe: GesturePipeline, plans: list[_Update]) -> list[np.ndarray]:
-    """The draws ``[K, T, D]`` of each update of ``plans`` (of streams on ``pipe``), all in one batched pass."""
+#: how a loaded pass draws (:func:`push_together` with ``loaded``): one candidate per update, with this many DDIM
+#: steps (the draws and their decoding are most of a pass's cost; chosen on val takes streamed against offline,
+#: ``experiments/live/README.md``)
+LOADED_STEPS = 5
+
+
+def draw_together(pipe: GesturePipeline, plans: list[_Update], steps: int | None = None) -> list[np.ndarray]:
+    """The draws ``[K, T, D]`` of each update of ``plans`` (of streams on ``pipe``), all in one batched pass;
+    ``steps``: DDIM steps (None: the pipeline's)."""
     conds = [np.concatenate([p.conds[i] for p in plans]) for i in range(len(plans[0].conds))]
+    generation = None if steps is None else replace(pipe.generation, num_inference_steps=steps)
     drawn = pipe.generate_windows(conds, [s for p in plans for s in p.seeds],
-                                  sound=np.concatenate([p.sound for p in plans]))
+                                  sound=np.concatenate([p.sound for p in plans]), generation=generation)
     return np.split(drawn, np.cumsum([len(p.seeds) for p in plans])[:-1])
 
 
-def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up: bool = False
-                  ) -> list[list[StreamFrames]]:
+def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up: bool = False,
+                  loaded: bool = False) -> list[list[StreamFrames]]:
     """Each job's samples pushed into its stream (``(stream, samples [N], sample_rate)``, as
     :meth:`GestureStream.push`; one job per stream, all on one pipeline): the updates that fall due together
     are drawn in one batched pass (each stream's filterbank on its own; the speech encoders, the diffusion draws
-    and their decoding for all at once). Returns each job's frames."""
+    and their decoding for all at once). ``loaded``: the pass draws as a server with many streams does, one
+    candidate per update and :data:`LOADED_STEPS` DDIM steps. Returns each job's frames."""
     rests = []
     for stream, samples, rate in jobs:
         x = np.asarray(samples, np.float32).reshape(-1)
@@ -121,9 +131,10 @@ def push_together(jobs: list[tuple["GestureStream", np.ndarray, int]], catch_up:
         if drawing:
             pipe = jobs[drawing[0]][0].pipe
             heard = pipe.speech.encode_each([jobs[i][0].audio for i in drawing],
-                                            noise_suppression=pipe.generation.noise_suppression)
-            plans = [jobs[i][0]._plan(enc) for i, enc in zip(drawing, heard)]
-            for i, plan, drawn in zip(drawing, plans, draw_together(pipe, plans)):
+                                            noise_suppression=pipe.generation.noise_suppression,
+                                            raw_fbanks=[jobs[i][0]._raw_fbank() for i in drawing])
+            plans = [jobs[i][0]._plan(enc, 1 if loaded else None) for i, enc in zip(drawing, heard)]
+            for i, plan, drawn in zip(drawing, plans, draw_together(pipe, plans, LOADED_STEPS if loaded else None)):
                 out[i].append(jobs[i][0]._finish(plan, drawn))
     return [[f for f in frames if len(f)] for frames in out]
 
@@ -150,6 +161,8 @@ class GestureStream:
         self.received = 0  # samples received (at 16 kHz)
         self.sent = 0  # frames sent
         self.updates = 0
+        self._fbank: torch.Tensor | None = None  # the filterbank of ``audio`` when ``received`` was ``_fbank_at``
+        self._fbank_at = 0
         self.draws = 0  # noise draws so far (a new one at each update over sound)
         self.last: np.ndarray | None = None  # the last sent frame's features [D]
         self.style = None if style is None else np.asarray(style, np.float32).reshape(1, -1)
@@ -219,25 +232,35 @@ class GestureStream:
         """Draw the window ending now and send the frames up to now, joined to the last frame sent."""
         if self._start_update() <= 0:
             return StreamFrames(self.sent, self.pipe.to_sequence(np.zeros((0, self.pipe.spec.dim), np.float32)))
-        enc = self.pipe.speech.encode_each([self.audio], noise_suppression=self.pipe.generation.noise_suppression)
+        enc = self.pipe.speech.encode_each([self.audio], noise_suppression=self.pipe.generation.noise_suppression,
+                                           raw_fbanks=[self._raw_fbank()])
         plan = self._plan(enc[0])
         return self._finish(plan, draw_together(self.pipe, [plan])[0])
+
+    def _raw_fbank(self) -> torch.Tensor:
+        """The filterbank of the newest 10 s (:attr:`audio`), only its newest frames computed anew
+        (:func:`~emogesture.audio.rolled_fbank`)."""
+        self._fbank = rolled_fbank(self._fbank, self.audio, self.received - self._fbank_at,
+                                   self.pipe.speech.fbank_config)
+        self._fbank_at = self.received
+        return self._fbank
 
     def _start_update(self) -> int:
         """Count the update due now; the frames it is to send (0: none yet)."""
         self.updates += 1
         return int(round(self.seconds * self.fps)) - self.sent
 
-    def _plan(self, enc) -> "_Update":
+    def _plan(self, enc, candidates: int | None = None) -> "_Update":
         """The update due now, up to its draws, from the window's speech latents ``enc`` (as
-        ``pipe.encode(self.audio, perceived=False)`` gives them): its conditions, seeds and sound."""
+        ``pipe.encode(self.audio, perceived=False)`` gives them): its conditions, seeds and sound;
+        ``candidates``: its draws (None: the stream's setting)."""
         target = int(round(self.seconds * self.fps))
         new = target - self.sent
         reference = self.neutral_reference  # read once: another thread may change it
         if reference is not None:
             enc = reference.relative(enc)
         conds = self.pipe.conditions(enc, self.edit, self.mode)
-        k = self.settings.candidates
+        k = candidates or self.settings.candidates
         hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
         if window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop], window_seconds=hop)[0] > 0.1:
             self.draws += 1  # new noise where the newest audio has sound; over silence the same draw goes on
