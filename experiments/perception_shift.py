@@ -9,9 +9,9 @@ noise alone (no speech at all). For each, over every 10-s window: how often the
 perceived emotion is the take's emotion, the median distance to the nearest emotion mean (in units of
 the trust threshold), the same for the voice (style latent to the nearest training speaker), and the
 share of windows that `generate --emotion auto` blends toward neutral. Each window is heard as `generate`
-hears it (the default generation settings: noise suppression; the windows the perception does not trust heard
-by the front end trained on real speech where the bundle has its read-out and its packages are installed, else
-the voice heard also moved ``perception_semitones`` up and down).
+hears it (the default generation settings: noise suppression; the recording heard by the front end trained on
+real speech as well, both read-outs multiplied, where the bundle has its read-out and its packages are
+installed, else the voice heard also moved ``perception_semitones`` up and down).
 
 Usage: python experiments/perception_shift.py SPEECH_MODEL CACHE OUT_DIR [SPLIT] [SEMITONES]
 (SEMITONES: the pitch-shifted hearings; default: the setting of the bundle SPEECH_MODEL belongs to)
@@ -90,8 +90,8 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
              "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
              "latent's to the nearest training speaker; each over its trust threshold (the "
              f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows). "
-             + ("The windows the perception does not trust fully heard by the front end trained on real speech "
-                "(one every 20 s of a run of them, those between interpolated), as `generate` hears them."
+             + ("Every window heard by the front end trained on real speech as well (one every 20 s, those between "
+                "interpolated) and both read-outs multiplied, as `generate` hears them."
                 if front_end else
                 f"Each window heard as recorded and with the voice moved {semitones:g} semitones up and down (the "
                 "probabilities averaged)." if semitones else "Each window heard once."), "",
