@@ -19,7 +19,7 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.models.perception import EmotionPerception
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
-from emogesture.pipeline.voice_features import FEATURES, front_end_installed, hearing_plan, whisper_features
+from emogesture.pipeline.voice_features import front_end_installed, hearing_plan, whisper_features
 from emogesture.runtime import StageTimes, autocast, bf16_weights, hold_bf16_weights, maybe_stage, resolve_precision
 
 FBANK_RATE = 100  # frames per second
@@ -178,14 +178,12 @@ class SpeechLatentEncoder:
         hears = (front_end and self.perception is not None and self.perception.heard is not None
                  and front_end_installed())
         if hears:  # every window: both read-outs are multiplied (pipeline.perception.heard_probabilities)
-            need = np.ones(len(starts), bool)
-            heard, weights = hearing_plan(need, hop_seconds)
-            if len(heard):  # (loaded only when a window needs it)
+            heard, weights = hearing_plan(np.ones(len(starts), bool), hop_seconds)
+            if len(heard):
                 with maybe_stage(times, "voice features"), whisper_features() as hearer:
                     features = hearer(waveform, [starts[i] for i in heard]) if hearer is not None else None
                 if features is not None:
-                    enc.heard_features = np.full((len(starts), FEATURES), np.nan, np.float32)
-                    enc.heard_features[need] = (weights[need] @ features).astype(np.float32)
+                    enc.heard_features = (weights @ features).astype(np.float32)
         # the pitch-moved hearings serve the latents' own read-out, which the front end's replaces
         if perception_semitones > 0 and "emotion" in parts and not hears:
             from emogesture.audio.wave_augment import voice_shift  # scipy's signal module: a second of start-up

@@ -23,7 +23,7 @@ from emogesture.data.cache import open_cache
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.errors import EmogestureError
 from emogesture.models.perception import EmotionPerception, LinearReadout
-from emogesture.pipeline.voice_features import WhisperFeatures, front_end_installed, whisper_features
+from emogesture.pipeline.voice_features import FEATURES, WhisperFeatures, front_end_installed, whisper_features
 from emogesture.types import EMOTIONS
 
 C_GRID = (0.1, 0.3, 1.0, 3.0)  # inverse regularisation strengths tried; the best on val is kept
@@ -67,17 +67,17 @@ def voice_features(hearer: WhisperFeatures, names: list[str] | tuple[str, ...],
     """Real voices read without acted emotion (:data:`emogesture.data.real_speech.TRAINING_VOICES` by name), at
     most ``most`` 10-s windows of each spread evenly over it -> features ``[R, 768]`` and emotions ``[R]``
     (all neutral)."""
-    from emogesture.data.real_speech import TRAINING_VOICES, load_voice, real_voice
+    from emogesture.data.real_speech import TRAINING_VOICES, load_voice
 
     features = []
     for name in tqdm(names, desc="neutral real voices, front end", unit="voice", disable=None):
         if name not in TRAINING_VOICES:  # a validation voice is never trained on
             raise EmogestureError(f"front-end voice {name!r}: not a training voice ({', '.join(TRAINING_VOICES)})")
-        wave = load_voice(real_voice(name))
+        wave = load_voice(TRAINING_VOICES[name])
         starts = window_starts(len(wave) / 16000, 10.0, 10.0)
         keep = np.unique(np.linspace(0, len(starts) - 1, min(len(starts), most)).round().astype(int))
         features.append(hearer(wave, starts[keep].tolist()))
-    x = np.concatenate(features) if features else np.zeros((0, 768), np.float32)
+    x = np.concatenate(features) if features else np.zeros((0, FEATURES), np.float32)
     return x, np.full(len(x), EMOTIONS.index("neutral"))
 
 
