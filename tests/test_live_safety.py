@@ -388,7 +388,8 @@ def test_the_app_page_with_its_token_works_in_a_browser(tmp_path):
 
 
 def test_a_pass_of_more_than_two_streams_is_drawn_as_a_loaded_one(monkeypatch):
-    """The batcher hands a pass of many streams to push_together as a loaded one (one candidate, fewer steps)."""
+    """The batcher hands a pass of many streams to push_together as a loaded one (one candidate, fewer steps),
+    and so every pass, however small, of a server with more than two streams open."""
     from emogesture.live import server as live_server
 
     seen = []
@@ -410,3 +411,11 @@ def test_a_pass_of_more_than_two_streams_is_drawn_as_a_loaded_one(monkeypatch):
     for n in (1, live_server.LOADED_PASS, live_server.LOADED_PASS + 1, 12):
         assert asyncio.run(drain(n)) == [[]] * n
     assert seen == [(1, True, False), (2, True, False), (3, True, True), (12, True, True)]
+
+    open_streams = [live_server.LOADED_PASS]
+    batcher = live_server.UpdateBatcher(1, lambda: open_streams[0])
+    seen.clear()
+    assert asyncio.run(drain(1)) == [[]]
+    open_streams[0] = live_server.LOADED_PASS + 1
+    assert asyncio.run(drain(1)) == [[]]
+    assert seen == [(1, True, False), (1, True, True)]

@@ -164,3 +164,14 @@ def test_the_encoder_fills_digital_silence_and_says_so(tmp_path):
     assert np.abs(raw.emotion - pipe.encode(joined)[0].emotion).mean() > 1e-4
     plain = pipe.perceive(*pipe.encode(speech), source="plain.wav")
     assert plain.digital_silence_s == 0.0 and "digital silence" not in " ".join(plain.details("auto"))
+
+
+@pytest.mark.parametrize("frames", [1, 2, 3, 40, 997])
+def test_column_percentiles_are_numpys(frames):
+    """The few order statistics a low (or high) percentile needs give numpy's values, interpolation included."""
+    from emogesture.audio.noise import column_percentiles
+
+    x = np.random.default_rng(frames).normal(size=(frames, 5))
+    x[:, 0] = 1.5  # ties
+    for q in (0.0, 1.0, 10.0, 33.3, 50.0, 90.0, 99.0, 100.0):
+        np.testing.assert_allclose(column_percentiles(x, q), np.percentile(x, q, axis=0), rtol=0, atol=1e-12)

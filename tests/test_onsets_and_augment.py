@@ -167,6 +167,9 @@ def test_window_activity_counts_frames_with_sound():
     wave[10 * sr:] = 0.0  # sound for 10 s, then digital silence
     act = window_activity(wave.astype(np.float32), sr, [0.0, 5.0, 10.0])
     assert act == pytest.approx([1.0, 0.5, 0.0], abs=0.01)
+    # one length per window: the newest quarter second of each part, and the whole
+    each = window_activity(wave.astype(np.float32), sr, [9.75, 19.75, 5.0], window_seconds=[0.25, 0.25, 10.0])
+    assert each == pytest.approx([1.0, 0.0, 0.5], abs=0.01)
     quiet = wave * 1e-4  # -90 dBFS: below the absolute floor
     assert window_activity(quiet.astype(np.float32), sr, [0.0]).item() == 0.0
 

@@ -157,18 +157,19 @@ def frame_energy(waveform: np.ndarray | torch.Tensor, sample_rate: int, fps: flo
 
 
 def window_activity(waveform: np.ndarray | torch.Tensor, sample_rate: int, starts_s: list[float],
-                    window_seconds: float = 10.0, floor_db: float = -50.0, range_db: float = 40.0) -> np.ndarray:
+                    window_seconds: float | list[float] = 10.0, floor_db: float = -50.0,
+                    range_db: float = 40.0) -> np.ndarray:
     """Share of each window's 1/30-s frames that hold sound: ``[W]`` in [0, 1] for windows starting at
-    ``starts_s``. A frame counts when its RMS (:func:`frame_energy`) is above ``floor_db`` dBFS and
-    within ``range_db`` of the loudest frame of the whole waveform; digital silence scores 0.
-    Frames past the end of the waveform count as silent."""
+    ``starts_s``, each ``window_seconds`` long (one length for all, or one per window). A frame counts when
+    its RMS (:func:`frame_energy`) is above ``floor_db`` dBFS and within ``range_db`` of the loudest frame of
+    the whole waveform; digital silence scores 0. Frames past the end of the waveform count as silent."""
     rms = frame_energy(waveform, sample_rate, fps=30)
     level = 20 * np.log10(np.maximum(rms, 1e-12))
     loudest = float(level.max()) if level.size else floor_db
     active = level > max(floor_db, loudest - range_db)
-    frames = int(round(window_seconds * 30))
+    lengths = np.broadcast_to(np.asarray(window_seconds, np.float64), (len(starts_s),))
     out = np.zeros(len(starts_s), np.float64)
-    for i, start in enumerate(starts_s):
-        first = int(round(start * 30))
+    for i, (start, seconds) in enumerate(zip(starts_s, lengths)):
+        first, frames = int(round(start * 30)), int(round(seconds * 30))
         out[i] = active[first:first + frames].sum() / frames
     return out

@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the token clients must give as ?token=SECRET (needed beyond 127.0.0.1: without it one is "
                    "made and printed with the page's URL; given on 127.0.0.1, enforced there too)")
     p.add_argument("--max-streams", type=int, metavar="N", default=None,
-                   help="streams taken at once; one more is told the server is busy (default: 2 per CPU core)")
+                   help="streams taken at once; one more is told the server is busy (default: 6 per CPU core)")
     p.add_argument("--max-stream-minutes", type=float, metavar="MIN", default=None,
                    help="the most audio one stream may carry, in minutes (default 60)")
     p.add_argument("--idle-timeout", type=float, metavar="S", default=None,

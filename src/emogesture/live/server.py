@@ -55,6 +55,7 @@ import asyncio
 import json
 import os
 import threading
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import partial
@@ -84,9 +85,9 @@ NEUTRAL_SECONDS = 60.0  # the most of a neutral recording kept (the least: neutr
 MAX_MESSAGE_BYTES = 4 * 2 ** 20  # the largest message a client may send: two minutes of 16-kHz audio
 MAX_STREAM_MINUTES = 60.0  # the most audio one stream may carry
 IDLE_TIMEOUT = 60.0  # seconds without a message from the client before its stream is closed
-#: streams taken at once per CPU core by default: four on two cores keep the median latency under 0.4 s
-#: (bench/results/live.md)
-STREAMS_PER_CORE = 2
+#: streams taken at once per CPU core by default: twelve on two cores keep a median latency of 0.4 s and a 95th
+#: percentile of 0.7 s, sixteen do not (bench/results/live_many.md)
+STREAMS_PER_CORE = 6
 BUSY, POLICY, TOO_BIG = 1013, 1008, 1009  # close codes: try again later, policy violation, message too big
 
 
@@ -184,21 +185,23 @@ def frames_message(frames: list[StreamFrames], fps: float, skeleton: str, audio_
         if skeleton == "mixamo":
             rig = rig_named(skeleton)
             q = matrix_to_quaternion(axis_angle_to_matrix(torch.from_numpy(poses[:, list(rig.joints)]))).numpy()
+        # rounded and turned into lists a block at a time (each frame's on its own costs the event loop)
+        moved = np.round(trans, 5).tolist()
+        turned = np.round(q if skeleton == "mixamo" else poses, 5).tolist()
+        face = None if block.sequence.arkit is None else np.round(block.sequence.arkit, 4).tolist()
         for k in range(len(block)):
             i = block.start + k
-            frame = {"frame": i, "time": round(i / fps, 5), "trans": np.round(trans[k], 5).tolist()}
-            if skeleton == "mixamo":
-                frame["rotations"] = np.round(q[k], 5).tolist()
-            else:
-                frame["poses"] = np.round(poses[k], 5).tolist()
-            if block.sequence.arkit is not None:
-                frame["arkit"] = np.round(block.sequence.arkit[k], 4).tolist()
+            frame = {"frame": i, "time": round(i / fps, 5), "trans": moved[k],
+                     "rotations" if skeleton == "mixamo" else "poses": turned[k]}
+            if face is not None:
+                frame["arkit"] = face[k]
             out.append(frame)
     return json.dumps({"frames": out, "audio_s": round(audio_s, 4)}, separators=(",", ":"))
 
 
-#: a pass of more streams than this is drawn as a loaded one (one candidate per update, fewer DDIM steps:
-#: :data:`~emogesture.pipeline.stream.LOADED_STEPS`): the draws and their decoding are most of a pass's cost
+#: with more streams than this open (or in one pass), every pass is drawn as a loaded one (one candidate per
+#: update, fewer DDIM steps: :data:`~emogesture.pipeline.stream.LOADED_STEPS`): the draws and their decoding are
+#: most of a pass's cost, and a loaded server's passes are mostly small ones, its threads taking turns
 #: (``experiments/live/README.md``)
 LOADED_PASS = 2
 
@@ -207,10 +210,12 @@ class UpdateBatcher:
     """The streams' audio that waits together becomes frames in one batched pass: each stream's push joins a
     queue, and a free one of ``threads`` threads takes everything queued at once
     (:func:`~emogesture.pipeline.stream.push_together`), so that the more streams wait, the larger and cheaper
-    per stream each pass is, while another pass may run beside it; a pass of more than :data:`LOADED_PASS`
-    streams is drawn as a loaded one."""
+    per stream each pass is, while another pass may run beside it; while more than :data:`LOADED_PASS` streams
+    are open (``open_streams``: how many; None: the pass's own) or in one pass, the pass is drawn as a loaded
+    one."""
 
-    def __init__(self, threads: int = 1) -> None:
+    def __init__(self, threads: int = 1, open_streams: Callable[[], int] | None = None) -> None:
+        self.open_streams = open_streams
         self.queue: list[tuple] = []
         self.lock = threading.Lock()
         self.thread = ThreadPoolExecutor(max_workers=threads, thread_name_prefix="emogesture-live-batch")
@@ -230,8 +235,8 @@ class UpdateBatcher:
         if not jobs:
             return  # an earlier pass took them
         try:
-            results: list = push_together([job[:3] for job in jobs], catch_up=True,
-                                          loaded=len(jobs) > LOADED_PASS)
+            load = max(len(jobs), self.open_streams() if self.open_streams is not None else 0)
+            results: list = push_together([job[:3] for job in jobs], catch_up=True, loaded=load > LOADED_PASS)
         except Exception as e:  # noqa: BLE001 - the pass's streams are told; the server and other passes go on
             results = [e] * len(jobs)  # (not retried alone: the pass may have taken in some of their audio)
         for (*_, future), result in zip(jobs, results):
@@ -246,7 +251,7 @@ class LiveServer:
 
     def __init__(self, pipe: GesturePipeline, workers: int = 1, limits: LiveLimits | None = None) -> None:
         self.pipe = pipe
-        self.batcher = UpdateBatcher(workers)
+        self.batcher = UpdateBatcher(workers, lambda: self.streams)
         self.worker = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="emogesture-live")
         self.limits = limits or LiveLimits()
         self.streams = 0  # connections admitted and not yet closed
@@ -451,6 +456,15 @@ def default_workers() -> int:
     return max(1, min(4, os.cpu_count() or 1))
 
 
+def threads_per_worker(workers: int) -> int:
+    """Torch's threads for each update thread's passes: the CPU cores shared out among the ``workers`` update
+    threads, at least one. Two passes each spreading over both of two cores fight for them (their threads wait
+    spinning for each other), and the event loop and the clients are left no core: on two cores, two update
+    threads of one torch thread each gave 12 streams a median of 0.33-0.37 s against 0.47-0.57 s, and one
+    stream 0.20 s against 0.24 s (``experiments/live/README.md``)."""
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
 def _respond(connection, kind: str, body: bytes, cookie: str | None = None):
     """An HTTP 200 response with ``body`` of content type ``kind`` (and a ``Set-Cookie``)."""
     response = connection.respond(HTTPStatus.OK, "")
@@ -502,7 +516,8 @@ async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int =
 
     check_served(host, token)
     limits = limits or LiveLimits()
-    server = LiveServer(pipe, workers or default_workers(), limits)
+    workers = workers or default_workers()
+    server = LiveServer(pipe, workers, limits)
     tokens = TokenCheck(token, port)
     rest = SMPLXSequence(poses=np.zeros((1, 55, 3), np.float32), trans=np.zeros((1, 3), np.float32),
                          arkit=np.zeros((1, 52), np.float32))  # its face at rest, for the streams that ask for one
@@ -526,8 +541,13 @@ async def serve_live(pipe: GesturePipeline, host: str = "127.0.0.1", port: int =
             return _respond(connection, *files[url.path], tokens.set_cookie(url.query))
         return connection.respond(HTTPStatus.NOT_FOUND, "not found: the stream is at /live, the page at /\n")
 
-    async with serve(server.handle, host, port, process_request=http, max_size=limits.max_message_bytes,
-                     create_connection=partial(_connection, limit=limits.max_message_bytes)) as running:
-        if ready is not None:
-            ready.set_result(running)
-        await asyncio.get_running_loop().create_future()
+    threads = torch.get_num_threads()
+    torch.set_num_threads(threads_per_worker(workers))  # the update threads start with it (and restored after)
+    try:
+        async with serve(server.handle, host, port, process_request=http, max_size=limits.max_message_bytes,
+                         create_connection=partial(_connection, limit=limits.max_message_bytes)) as running:
+            if ready is not None:
+                ready.set_result(running)
+            await asyncio.get_running_loop().create_future()
+    finally:
+        torch.set_num_threads(threads)

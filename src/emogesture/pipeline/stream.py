@@ -93,9 +93,9 @@ class _Update:
 
 
 #: how a loaded pass draws (:func:`push_together` with ``loaded``): one candidate per update, with this many DDIM
-#: steps (the draws and their decoding are most of a pass's cost; chosen on val takes streamed against offline,
-#: ``experiments/live/README.md``)
-LOADED_STEPS = 5
+#: steps (the draws and their decoding are most of a pass's cost; chosen on val takes streamed against offline:
+#: 3, 5 and 10 steps join alike, ``experiments/live/README.md``)
+LOADED_STEPS = 3
 
 
 def draw_together(pipe: GesturePipeline, plans: list[_Update], steps: int | None = None) -> list[np.ndarray]:
@@ -261,12 +261,14 @@ class GestureStream:
             enc = reference.relative(enc)
         conds = self.pipe.conditions(enc, self.edit, self.mode)
         k = candidates or self.settings.candidates
-        hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound (loudness as the window's)
-        if window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop], window_seconds=hop)[0] > 0.1:
+        hop = self.settings.hop_seconds  # the share of the newest hop's frames with sound, and the window's
+        newest, whole = window_activity(self.audio, TARGET_SAMPLE_RATE, [WINDOW_SECONDS - hop, 0.0],
+                                        window_seconds=[hop, WINDOW_SECONDS])
+        if newest > 0.1:
             self.draws += 1  # new noise where the newest audio has sound; over silence the same draw goes on
         # the stream's own seeds: one per draw and candidate (its draws are not a recording's windows)
         seeds = [int(np.random.SeedSequence([self.seed, self.draws, c]).generate_state(1)[0]) for c in range(k)]
-        weight = residual_weights(window_activity(self.audio, TARGET_SAMPLE_RATE, [0.0]))
+        weight = residual_weights(np.array([whole]))
         return _Update(conds=[np.repeat(c[:1], k, 0) for c in conds], seeds=seeds, sound=np.repeat(weight, k),
                        target=target, new=new, enc=enc)
 
@@ -279,8 +281,10 @@ class GestureStream:
             frames = chosen[0]
         else:
             before = drawn[:, end - new - 1]  # each candidate at the instant of the last frame sent
-            jumps = self.pipe.joint_jumps(np.stack([np.broadcast_to(self.last, before.shape), before], 1))[:, 0]
-            best = int(np.argmin(jumps))
+            best = 0
+            if len(drawn) > 1:
+                jumps = self.pipe.joint_jumps(np.stack([np.broadcast_to(self.last, before.shape), before], 1))[:, 0]
+                best = int(np.argmin(jumps))
             fade = self._fade(new)
             frames = chosen[best] + fade[:, None] * (self.last - before[best])[None]
         self.last = frames[-1].copy()
