@@ -10,7 +10,11 @@ after each minute (no growth expected: the stream keeps a fixed 10-s buffer and 
 
 ``--seconds``: each stream's length (default 60); the server's resident memory is read after each row.
 
-Usage: python bench/live.py [--streams 1 4] [--seconds 60] [--long 10] [--face] [--out bench/results/live.md]
+``--max-streams N``: the server's capacity (default: the most streams of a row); the clients of a row beyond it
+connect a second after the others and must be told the server is busy; the row's latency is the admitted ones'.
+
+Usage: python bench/live.py [--streams 1 4] [--seconds 60] [--long 10] [--face] [--max-streams N]
+                            [--out bench/results/live.md]
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import soundfile as sf
 
 from emogesture.checkpoints import write_text_atomic
 from emogesture.data.real_speech import RECORDINGS, load_real_recording
+from emogesture.errors import EmogestureError
 from emogesture.live.client import stream_file
 
 
@@ -58,13 +63,16 @@ def main() -> None:
     ap.add_argument("--long", type=float, default=10.0, help="minutes of the long stream (0: none)")
     ap.add_argument("--face", action="store_true", help="every stream with a face (52 ARKit weights a frame)")
     ap.add_argument("--workers", type=int, default=None, help="the server's update threads (default: its own)")
+    ap.add_argument("--max-streams", type=int, default=None,
+                    help="the server's capacity (default: the most streams of a row); clients beyond it must be refused")
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "results" / "live.md")
     args = ap.parse_args()
+    capacity = args.max_streams or max(args.streams)
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     server = subprocess.Popen([sys.executable, "-m", "emogesture.cli.main", "live", "--port", str(port),
-                               "--max-streams", str(max(args.streams)),
+                               "--max-streams", str(capacity),
                                *(["--workers", str(args.workers)] if args.workers else [])],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
@@ -78,12 +86,26 @@ def main() -> None:
                 time.sleep(1)
         with tempfile.TemporaryDirectory() as work:
             clip = real_speech(Path(work), args.seconds)
-            rows = []
+            rows, refusals = [], []
             for n in args.streams:
+                async def one(k: int):
+                    if k < capacity:
+                        return await stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k, face=args.face)
+                    await asyncio.sleep(1.0)  # once the admitted streams run
+                    try:
+                        await stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k, face=args.face)
+                    except EmogestureError as e:
+                        return str(e).split(": ", 1)[-1]  # (without the URL)
+                    raise SystemExit(f"stream {k + 1} of {n} was admitted beyond a capacity of {capacity}")
+
                 async def run_all():
-                    return await asyncio.gather(*(stream_file(f"ws://127.0.0.1:{port}/live", clip, seed=k, face=args.face)
-                                                  for k in range(n)))
+                    return await asyncio.gather(*(one(k) for k in range(n)))
                 results = asyncio.run(run_all())
+                refused = [r for r in results if isinstance(r, str)]
+                results = [r for r in results if not isinstance(r, str)]
+                if refused:
+                    refusals.append(f"{n} streams asked of a capacity of {capacity}: {len(refused)} told "
+                                    f"\"{refused[0]}\"")
                 lat = np.concatenate([r.latency for r in results])
                 frames = sorted({len(r.poses) for r in results})
                 worst = max(np.quantile(r.latency, 0.95) for r in results)
@@ -102,6 +124,8 @@ def main() -> None:
             "far).\n\n"
             "| streams at once | median (s) | 95th percentile (s) | worst stream's p95 (s) | largest (s) | frames per "
             "stream | server memory, MB |\n|---|---|---|---|---|---|---|\n" + "\n".join(rows) + "\n")
+    if refusals:
+        text += "\nThe latency of the admitted streams; " + "; ".join(refusals) + ".\n"
     if args.long > 0:
         text += long_stream(args.long)
     write_text_atomic(args.out, text)
