@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from emogesture.audio import kaldi_fbank, normalise_recording
+from emogesture.audio import kaldi_fbank, normalise_recording, speech_level
 from emogesture.checkpoints import load_model, save_model
 from emogesture.config import to_dict
 from emogesture.data.beat import EMOTIONS
@@ -41,6 +41,8 @@ def test_level_ignores_the_gain_and_spectrum_the_channel():
     change = (coloured - plain)[:, clean]  # the level alone keeps the colouring: one offset for every bin
     np.testing.assert_allclose(change - change[:, :1], (tilt[clean] - tilt[clean][0]).expand_as(change), atol=1e-4)
     assert normalise_recording(fb, "none") is fb
+    # the level taken out is the recording's speech level, which a gain of 20 dB moves by 20 dB
+    assert 10 / np.log(10) * (speech_level(louder) - speech_level(fb)) == pytest.approx(20.0, abs=0.2)
     as_numpy = normalise_recording(fb.numpy(), "level")
     assert isinstance(as_numpy, np.ndarray) and as_numpy.dtype == np.float32
     np.testing.assert_allclose(as_numpy, normalise_recording(fb, "level").numpy(), atol=1e-5)

@@ -45,6 +45,7 @@ from emogesture.audio.windows import (
     normalise_fbank,
     normalise_recording,
     seconds_to_fbank_frame,
+    speech_level,
     window_starts,
 )
 
@@ -72,6 +73,7 @@ __all__ = [
     "check_speech",
     "denormalise_fbank",
     "normalise_recording",
+    "speech_level",
     "RECORDING_NORMS",
     "detect_onsets",
     "window_activity",

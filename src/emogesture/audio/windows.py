@@ -27,6 +27,7 @@ __all__ = [
     "WINDOW_CONTENT_FRAMES",
     "normalise_fbank",
     "normalise_recording",
+    "speech_level",
     "RECORDING_NORMS",
     "denormalise_fbank",
     "fbank_window",
@@ -90,16 +91,26 @@ def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB
     if mode == "none" or len(fbank) == 0:
         return fbank
     x = fbank_float64(fbank)
-    loudness = x.mean(1)
-    gate = np.percentile(loudness, 95) - gate_db * math.log(10.0) / 10.0  # dB of power -> natural-log units
-    active = x[loudness >= gate]
-    if mode == "level":
-        top = active.max()
-        offset = top + math.log(float(np.exp(active - top).mean()))
-    else:
-        offset = active.mean(0)
+    offset = speech_level(x, gate_db) if mode == "level" else _active_frames(x, gate_db).mean(0)
     floor = x <= log_floor + 1e-4
     return fbank_like(np.where(floor, x, x - offset), fbank)
+
+
+def _active_frames(x: np.ndarray, gate_db: float) -> np.ndarray:
+    """The frames of a float64 log-mel fbank ``[F, n_mels]`` whose mean log-mel lies within ``gate_db`` of its
+    95th percentile over the recording."""
+    loudness = x.mean(1)
+    gate = np.percentile(loudness, 95) - gate_db * math.log(10.0) / 10.0  # dB of power -> natural-log units
+    return x[loudness >= gate]
+
+
+def speech_level(fbank: Array, gate_db: float = ACTIVE_GATE_DB) -> float:
+    """A recording's speech level from its raw log-mel fbank ``[F, n_mels]`` (non-empty): the log of its active
+    frames' mean mel power (:func:`normalise_recording`), in natural-log units of power (× 10 / ln 10 for dB).
+    A gain of g dB moves it by g dB."""
+    active = _active_frames(fbank_float64(fbank), gate_db)
+    top = active.max()
+    return float(top + math.log(float(np.exp(active - top).mean())))
 
 
 def denormalise_fbank(x: Array, mean: float = FBANK_MEAN, std: float = FBANK_STD) -> Array:
