@@ -9,6 +9,7 @@ server by itself after ten minutes too)."""
 import asyncio
 import contextlib
 import json
+import os
 import socket
 import threading
 import time
@@ -419,3 +420,13 @@ def test_a_pass_of_more_than_two_streams_is_drawn_as_a_loaded_one(monkeypatch):
     open_streams[0] = live_server.LOADED_PASS + 1
     assert asyncio.run(drain(1)) == [[]]
     assert seen == [(1, True, False), (1, True, True)]
+
+
+def test_the_update_threads_share_the_cores_among_them(monkeypatch):
+    """Each update thread's passes get torch threads of their own share of the cores: two passes spreading over
+    the same two cores fight for them."""
+    from emogesture.live.server import threads_per_worker
+
+    for cores, workers, threads in ((2, 2, 1), (2, 1, 2), (16, 4, 4), (2, 4, 1), (None, 2, 1)):
+        monkeypatch.setattr(os, "cpu_count", lambda n=cores: n)
+        assert threads_per_worker(workers) == threads
