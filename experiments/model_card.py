@@ -247,9 +247,8 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     shift_how = ("; measured before the front end trained on real speech heard the windows the perception does "
                  f"not trust, each window heard three times, the voice also moved {semitones:g} semitones up and down"
                  if perception.get("heard") and not shift.get("front_end") and semitones else "")
-    hearings_text = (" The front end trained on real speech hears the recording as well (a window every 10 s "
-                     "where the perception does not trust the speech model, one a minute where it does, those between "
-                     "interpolated), and the two readings are multiplied: in a window the perception "
+    hearings_text = (" The front end trained on real speech hears the recording as well (one window every 20 s, "
+                     "those between interpolated), and the two readings are multiplied: in a window the perception "
                      "trusts fully, the speech model's log-probabilities plus half the front end's, elsewhere the "
                      "front end's plus a quarter of the speech model's; where the trust is low, what the front end "
                      "hears is the emotion animated. The voice is not heard again moved in pitch (that serves models "

@@ -90,8 +90,7 @@ def main(speech_model: str, cache_dir: str, out_dir: str, split: str = "test", s
              "the emotion latent's Mahalanobis distance to the nearest emotion mean; voice distance: the style "
              "latent's to the nearest training speaker; each over its trust threshold (the "
              f"{perception.info['quantile']:g} quantile on the {perception.info['split']} windows). "
-             + ("Every window heard by the front end trained on real speech as well (one every 10 s where the "
-                "perception does not trust the speech model, one a minute where it does, those between "
+             + ("Every window heard by the front end trained on real speech as well (one every 20 s, those between "
                 "interpolated) and both read-outs multiplied, as `generate` hears them."
                 if front_end else
                 f"Each window heard as recorded and with the voice moved {semitones:g} semitones up and down (the "

@@ -19,7 +19,6 @@ from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.config import from_dict
 from emogesture.models.perception import EmotionPerception
 from emogesture.models.speech import LATENT_PARTS, AudioLatents
-from emogesture.pipeline import voice_features
 from emogesture.pipeline.voice_features import front_end_installed, hearing_plan, whisper_features
 from emogesture.runtime import StageTimes, autocast, bf16_weights, hold_bf16_weights, maybe_stage, resolve_precision
 
@@ -164,8 +163,8 @@ class SpeechLatentEncoder:
         ``shifted_emotion``/``shifted_logits`` (what :func:`emogesture.pipeline.perception.perceive` averages);
         the latents themselves are the recording's own. ``front_end``: where the perception has a read-out of
         the front end trained on real speech and its packages are installed, the windows are heard by it too
-        (``heard_features``; one every 10 s heard where the speech model is not trusted, one a minute where it
-        is, those between interpolated: :func:`~emogesture.pipeline.voice_features.hearing_plan`)."""
+        (``heard_features``; one every 20 s heard, those between interpolated:
+        :func:`~emogesture.pipeline.voice_features.hearing_plan`)."""
         if sample_rate != self.fbank_config.sample_rate:
             raise ValueError(f"expected {self.fbank_config.sample_rate} Hz audio, got {sample_rate}")
         if perception_semitones < 0:
@@ -179,8 +178,7 @@ class SpeechLatentEncoder:
         hears = (front_end and self.perception is not None and self.perception.heard is not None
                  and front_end_installed())
         if hears:  # every window: both read-outs are multiplied (pipeline.perception.heard_probabilities)
-            every = np.where(self._trusted(enc), voice_features.TRUSTED_HEARD_EVERY_S, voice_features.HEARD_EVERY_S)
-            heard, weights = hearing_plan(every, hop_seconds)
+            heard, weights = hearing_plan(np.ones(len(starts), bool), hop_seconds)
             if len(heard):
                 with maybe_stage(times, "voice features"), whisper_features() as hearer:
                     features = hearer(waveform, [starts[i] for i in heard]) if hearer is not None else None
@@ -232,15 +230,6 @@ class SpeechLatentEncoder:
             one.timing, one.noise_suppressed, one.digital_silence_s = timing, strength, silence_s
             out.append(one)
         return out
-
-    def _trusted(self, enc: EncodedWindows) -> np.ndarray:
-        """``[W]`` bool: the windows the perception trusts fully (of its emotion alone where the style latents were
-        not wanted; none where the emotion latents were not)."""
-        if enc.emotion.shape[-1] == 0:  # (a latent not wanted is empty: [W, 0])
-            return np.zeros(len(enc.emotion), bool)
-        if enc.style.shape[-1] == 0:
-            return self.perception.emotion.trust(enc.emotion) >= 1.0
-        return self.perception.trust(enc.emotion, enc.style) >= 1.0
 
     def _filled(self, fb: torch.Tensor) -> tuple[torch.Tensor, float]:
         """A recording's raw fbank with its digital silence filled (unless ``fill_digital_silence`` is off), and

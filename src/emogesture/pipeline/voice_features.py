@@ -23,28 +23,26 @@ WINDOW_SECONDS = 10.0
 FRAMES_PER_SECOND = 50  # the encoder's output rate
 FEATURES = 768
 BATCH = 8
-#: the front end hears a window at least this often (s) where the perception does not trust the speech model, and
-#: this often where it does; the windows between take their neighbours' features, interpolated (each window heard
-#: costs about as much as generating its motion). Chosen on val recordings that change emotion
-#: (``experiments/perception/hearing_interval.py``): real voices gain from each hearing, the trusted synthetic
-#: voices from none beyond one a minute
-HEARD_EVERY_S = 10.0
-TRUSTED_HEARD_EVERY_S = 60.0
+#: the front end hears a window about this often (s); the windows between take their neighbours' features,
+#: interpolated (it costs about as much as the rest of the generation per window heard)
+HEARD_EVERY_S = 20.0
 
 
-def hearing_plan(every_s: np.ndarray, hop_seconds: float) -> tuple[np.ndarray, np.ndarray]:
-    """Which windows (every ``hop_seconds``) the front end hears, and how each window's features are made of
-    theirs: ``(heard indices [H], weights [W, H])``. ``every_s`` ``[W]``: how often (s) the front end must hear
-    about each window. The first and the last window are heard and, in between, a window whose own interval has
-    passed since the last one heard; the rest are interpolated linearly in time."""
+def hearing_plan(need: np.ndarray, hop_seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which of the windows that need hearing (``need`` ``[W]`` bool, windows every ``hop_seconds``) the front
+    end hears, and how each window's features are made of theirs: ``(heard indices [H], weights [W, H])``, the
+    weights of a window that needs no hearing all zero. The first and the last window needing it are heard and,
+    in between, one at least every :data:`HEARD_EVERY_S`; the rest are interpolated linearly in time."""
+    every = max(1, int(round(HEARD_EVERY_S / hop_seconds)))
+    wanted = np.flatnonzero(need)
     heard: list[int] = []
-    for i, every in enumerate(np.asarray(every_s, np.float64)):
-        if not heard or i - heard[-1] >= max(1, int(round(every / hop_seconds))) or i == len(every_s) - 1:
-            heard.append(i)
-    weights = np.zeros((len(every_s), len(heard)))
-    for i in range(len(every_s)):
+    for i in wanted:
+        if not heard or i - heard[-1] >= every or i == wanted[-1]:
+            heard.append(int(i))
+    weights = np.zeros((len(need), len(heard)))
+    for i in wanted:
         after = int(np.searchsorted(heard, i))
-        if heard[after] == i:
+        if after < len(heard) and heard[after] == i:
             weights[i, after] = 1.0
         else:  # between heard[after - 1] and heard[after]
             left, right = heard[after - 1], heard[after]
