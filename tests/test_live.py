@@ -332,11 +332,12 @@ def test_the_page_shows_the_face_a_stream_sends(server, tmp_path):
         driver.find_element("id", "stop").click()
         time.sleep(0.5)
         shown = canvas_pixels(driver, "#view")
+        driver.save_screenshot(str(tmp_path / "face.png"))
         driver.execute_script("window.emogestureLive.clip.face.shown = false;")
         time.sleep(0.5)
         hidden = canvas_pixels(driver, "#view")
         assert (np.abs(shown - hidden).sum(-1) > 30).sum() > 20  # the face's pixels
-        driver.save_screenshot(str(tmp_path / "face.png"))
+        driver.save_screenshot(str(tmp_path / "face_hidden.png"))
     finally:
         driver.quit()
     assert proc.poll() is None
