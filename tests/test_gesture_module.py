@@ -152,3 +152,16 @@ def test_train_refuses_more_devices_than_it_has(monkeypatch, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--devices 2: torch sees 1 GPU(s)" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "run").exists()
+
+
+def test_the_bundled_gesture_model_s_flops_are_counted():
+    """The benchmarks' floor counts the bundled model's FLOPs on the meta device, its computed buffers (the
+    detail path's columns and cosines) moved there too."""
+    from emogesture.assets import bundled_model_file
+    from emogesture.checkpoints import load_model
+    from emogesture.models.gesture import gesture_flops
+
+    config = load_model(bundled_model_file("gesture"), "gesture").config
+    assert config.vae.detail_path > 0  # the path whose buffers are built on the CPU
+    flops = gesture_flops(config)
+    assert flops["decode"] > 0 and flops["prior"] > flops["decode"] and flops["denoiser"] > 0

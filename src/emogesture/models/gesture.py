@@ -155,7 +155,7 @@ def gesture_flops(config: GestureModelConfig) -> dict[str, int]:
     from torch.utils.flop_counter import FlopCounterMode
 
     with torch.device("meta"):
-        model = GestureModel(config).eval()
+        model = GestureModel(config).eval().to("meta")  # (its computed buffers are built on the CPU)
         motion = torch.zeros(1, config.vae.frames, config.vae.feature_dim)
         z = torch.zeros(1, config.vae.latent_dim)
         conds = [torch.zeros(1, config.denoiser.cond_dim) for _ in range(config.denoiser.num_conditions)]
