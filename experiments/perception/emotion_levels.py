@@ -67,7 +67,7 @@ def main() -> None:
         by = levels[split]
         order = sorted(by, key=lambda e: -float(np.median(by[e])))
         lines += [row(f"corpus {split}: {e}", by[e]) for e in order]
-    lines.append(row("real read speech (the packaged recordings)", [r for r in real]))
+    lines.append(row("real read speech (the packaged recordings)", real))
     for emotion in sorted(labelled, key=lambda e: -float(np.median(labelled[e]))):
         lines.append(row(f"labelled speech, val speakers: {emotion}", labelled[emotion]))
     train = levels["train"]

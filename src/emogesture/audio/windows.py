@@ -91,7 +91,8 @@ def normalise_recording(fbank: Array, mode: str, gate_db: float = ACTIVE_GATE_DB
     if mode == "none" or len(fbank) == 0:
         return fbank
     x = fbank_float64(fbank)
-    offset = speech_level(x, gate_db) if mode == "level" else _active_frames(x, gate_db).mean(0)
+    active = _active_frames(x, gate_db)
+    offset = _mean_power_log(active) if mode == "level" else active.mean(0)
     floor = x <= log_floor + 1e-4
     return fbank_like(np.where(floor, x, x - offset), fbank)
 
@@ -108,7 +109,11 @@ def speech_level(fbank: Array, gate_db: float = ACTIVE_GATE_DB) -> float:
     """A recording's speech level from its raw log-mel fbank ``[F, n_mels]`` (non-empty): the log of its active
     frames' mean mel power (:func:`normalise_recording`), in natural-log units of power (× 10 / ln 10 for dB).
     A gain of g dB moves it by g dB."""
-    active = _active_frames(fbank_float64(fbank), gate_db)
+    return _mean_power_log(_active_frames(fbank_float64(fbank), gate_db))
+
+
+def _mean_power_log(active: np.ndarray) -> float:
+    """The log of the mean mel power of log-mel frames ``[F, n_mels]`` (computed from their largest value on)."""
     top = active.max()
     return float(top + math.log(float(np.exp(active - top).mean())))
 
