@@ -39,6 +39,7 @@ DOCUMENTED = {
     "speech.model.emotion_speaker_context": "documented with the measurement that it helps (docs/presets.md)",
     "speech.wave.codec": "a recording condition of the augmentation a user can turn on",
     "speech.num_workers": "data loading workers",
+    "speech.level_jitter_db": "each training window heard at its own level (docs/training.md), measured on val",
     "gesture.num_workers": "data loading workers",
     "extractor.num_workers": "data loading workers",
     "gesture.weight_decay": "the optimiser's decay, the paper's 0",

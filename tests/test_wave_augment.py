@@ -130,6 +130,42 @@ def test_training_windows_heard_through_augmented_conditions(tmp_path):
         SpeechQuadrupleDataset(train, [1, 2], 4, augmenter=on, augment_share=1.5)
 
 
+def test_level_jitter_hears_each_window_as_if_recorded_at_another_gain(tmp_path):
+    """``level_jitter_db``: each window's input is its fbank as the waveform played at a gain within ±L dB would
+    give it (the same shift in every bin), drawn per window from the item's generator; off, nothing changes."""
+    from emogesture.data.cache import open_cache
+    from emogesture.data.datasets import SpeechQuadrupleDataset, WaveWindowAugmenter
+    from emogesture.data.prepare import prepare
+
+    from helpers import make_root
+
+    make_root(tmp_path / "root", speakers=(1, 2), takes=(1, 3))
+    prepare(tmp_path / "root", tmp_path / "cache", progress=False)
+    cache = open_cache(tmp_path / "cache")
+    train = cache.split("train")
+    data = SpeechQuadrupleDataset(train, [1, 2], 8, seed=3, level_jitter_db=12.0, fbank_std=cache.stats["fbank_std"])
+    plain = SpeechQuadrupleDataset(train, [1, 2], 8, seed=3)
+    off = WaveWindowAugmenter(cache, train, WaveAugmentConfig(**{name: 0.0 for name in TRANSFORMS}))
+    gains = []
+    for i in range(8):
+        item = data[i]
+        assert torch.equal(item["fbank"], plain[i]["fbank"])  # the same quadruple and target
+        shift = (item["inputs"] - item["fbank"]).numpy()
+        assert np.allclose(shift, shift[:, :1, :1], atol=1e-4)  # one shift per window, in every bin and frame
+        gains += list(shift[:, 0, 0] / data.level_step)
+    gains = np.array(gains)
+    assert np.all(np.abs(gains) <= 12.0 + 1e-3) and gains.std() > 3  # spread over the range
+    # the shift is what a gain does to the waveform: window 0 played 8 dB louder
+    c = off.fbank_config
+    first = int(round(float(train.start_s[0]) * c.sample_rate / c.frame_shift)) * c.frame_shift
+    wave = off.waves[train.takes[0]][first: first + off.window_samples]
+    louder = off.window_fbank(wave * 10 ** (8 / 20)) - off.window_fbank(wave)
+    assert np.median(louder) == pytest.approx(8 * float(data.level_step), rel=0.02)
+    assert torch.equal(data[5]["inputs"], data[5]["inputs"])  # the seed decides
+    with pytest.raises(ValueError, match="level_jitter_db"):
+        SpeechQuadrupleDataset(train, [1, 2], 4, level_jitter_db=6.0)
+
+
 def test_a_bank_of_augmented_variants_is_made_once_and_the_same_in_any_number_of_processes(tmp_path):
     """The bank holds K seeded augmented variants per window, made alike by one process or two; the dataset
     draws among them, and different variants of a window differ."""

@@ -139,15 +139,25 @@ class SpeechQuadrupleDataset(Dataset):
     ``augmenter`` (drawn afresh, or one of an :class:`AugmentedWindowBank`'s variants), each window is also
     heard through augmented conditions with probability ``augment_share`` (the same generator decides):
     ``inputs [4, 1024, n_mels]``, ``fbank`` staying the
-    clean windows (the reconstruction target).
+    clean windows (the reconstruction target). With ``level_jitter_db`` > 0, every window is also heard at a
+    level moved by a gain drawn from ±``level_jitter_db`` dB (``fbank_std``: the windows'
+    normalisation, which scales the shift of each bin).
     """
 
     def __init__(self, windows: SplitWindows, speakers: list[int], length: int, seed: int = 0,
                  augmenter: WaveWindowAugmenter | AugmentedWindowBank | None = None,
-                 augment_share: float = 0.0) -> None:
+                 augment_share: float = 0.0, level_jitter_db: float = 0.0,
+                 fbank_std: np.ndarray | None = None) -> None:
         if not 0.0 <= augment_share <= 1.0:
             raise ValueError(f"augment_share {augment_share} is not in [0, 1]")
+        if level_jitter_db < 0 or (level_jitter_db > 0 and fbank_std is None):
+            raise ValueError("level_jitter_db must be >= 0 and needs the windows' fbank_std")
         self.augmenter, self.augment_share = augmenter, augment_share
+        # a gain of d dB moves every log-mel bin (natural log of power) by d ln(10) / 10, and the normalised
+        # window (normalise_fbank: divided by twice the std) by half that over the std
+        self.level_jitter_db = level_jitter_db
+        self.level_step = (np.log(10) / 10 / (2 * np.asarray(fbank_std, np.float32))).astype(np.float32) \
+            if level_jitter_db > 0 else None
         self.windows = windows
         self.index = QuadrupleIndex(windows)
         self.speaker_class = {s: i for i, s in enumerate(speakers)}
@@ -167,11 +177,15 @@ class SpeechQuadrupleDataset(Dataset):
             "emotion": torch.tensor(q.emotion),
             "speaker": torch.tensor([self.speaker_class[s] for s in q.speakers]),
         }
-        if self.augmenter is not None:
+        if self.augmenter is not None or self.level_step is not None:
             heard = fbank.copy()
-            for k, j in enumerate(q.indices):
-                if rng.random() < self.augment_share:
-                    heard[k] = self.augmenter(j, rng)
+            if self.augmenter is not None:
+                for k, j in enumerate(q.indices):
+                    if rng.random() < self.augment_share:
+                        heard[k] = self.augmenter(j, rng)
+            if self.level_step is not None:  # every window heard at its own level (drawn after the above)
+                gains = rng.uniform(-self.level_jitter_db, self.level_jitter_db, len(q.indices)).astype(np.float32)
+                heard += gains[:, None, None] * self.level_step
             item["inputs"] = torch.from_numpy(heard)
         return item
 

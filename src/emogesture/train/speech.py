@@ -65,6 +65,10 @@ class SpeechTrainConfig:
     #: afresh. On a CPU this takes the waveform augmentation, most of a step's work, off the training steps
     #: (:class:`emogesture.data.datasets.AugmentedWindowBank`).
     wave_variants: int = 0
+    #: Every training window heard at a level moved by a gain drawn from ±this many dB (after the wave
+    #: augmentation; 0 = off), so that the recording's level, which goes with emotion in the corpus, tells the
+    #: encoders less and a quiet or loud microphone moves the perceived emotion less.
+    level_jitter_db: float = 0.0
     freq_mask: int = 24
     time_mask: int = 96
     noise_std: float = 0.05
@@ -101,7 +105,8 @@ class SpeechTrainConfig:
 class SpeechDataModule(L.LightningDataModule):
     def __init__(self, cache_dir: Path, batch_size: int, samples_per_epoch: int, seed: int, num_workers: int = 0,
                  splits: Sequence[str] = ("train",), wave_augment: float = 0.0,
-                 wave: WaveAugmentConfig | None = None, wave_variants: int = 0, progress: bool = True):
+                 wave: WaveAugmentConfig | None = None, wave_variants: int = 0, progress: bool = True,
+                 level_jitter_db: float = 0.0):
         super().__init__()
         self.cache = open_cache(cache_dir)
         if "test" in splits:
@@ -113,7 +118,7 @@ class SpeechDataModule(L.LightningDataModule):
                      if wave_augment > 0 else None)
         self.wave_variants, self.progress = wave_variants, progress
         self.dataset = SpeechQuadrupleDataset(self.train, self.speakers, samples_per_epoch, seed, augmenter,
-                                              wave_augment)
+                                              wave_augment, level_jitter_db, self.cache.stats["fbank_std"])
 
     def setup(self, stage: str) -> None:
         """With ``wave_variants``, the augmented-window bank is made here: after the run's checks, before the
@@ -214,12 +219,15 @@ def build(config: SpeechTrainConfig, cache_dir: Path, seed: int, progress: bool 
         raise ConfigError(f"wave_augment {config.wave_augment}: a share of the windows, 0-1")
     if config.wave_variants < 0 or (config.wave_variants > 0 and config.wave_augment == 0):
         raise ConfigError(f"wave_variants {config.wave_variants}: must be >= 0, and needs wave_augment > 0")
+    if not 0.0 <= config.level_jitter_db <= 30.0:
+        raise ConfigError(f"level_jitter_db {config.level_jitter_db}: dB, 0-30")
     try:
         config.wave.validate()
     except ValueError as err:
         raise ConfigError(f"wave: {err}") from None
     data = SpeechDataModule(cache_dir, config.batch_size, config.samples_per_epoch, seed, config.num_workers,
-                            config.train_splits, config.wave_augment, config.wave, config.wave_variants, progress)
+                            config.train_splits, config.wave_augment, config.wave, config.wave_variants, progress,
+                            config.level_jitter_db)
     if data.train.fbank.shape[1:] != (config.model.encoder.input_frames, config.model.encoder.input_bins):
         raise ConfigError(
             f"{cache_dir}: windows are {tuple(data.train.fbank.shape[1:])} but the model expects "
