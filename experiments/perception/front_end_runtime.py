@@ -21,14 +21,12 @@ import numpy as np
 
 import emogesture.pipeline.speech as speech_pipeline
 from emogesture.audio import load_audio
-from emogesture.audio.whisper_mel import whisper_log_mel
 from emogesture.data.cache import open_cache
 from emogesture.data.labelled_speech import labelled_recordings, read_manifest
 from emogesture.data.real_speech import RECORDINGS, load_real_recording
 from emogesture.pipeline.perception import perceive, perception_of
 from emogesture.pipeline.speech import SpeechLatentEncoder
-from emogesture.pipeline.voice_features import (BATCH, FEATURES, FRAMES_PER_SECOND, SAMPLE_RATE, WINDOW_SECONDS,
-                                                WhisperFeatures)
+from emogesture.pipeline.voice_features import WhisperFeatures, window_features
 from emogesture.types import EMOTIONS
 
 
@@ -45,17 +43,10 @@ class Ctranslate2Features:
                                                 compute_type="int8", intra_threads=torch.get_num_threads())
 
     def __call__(self, waveform: np.ndarray, starts_s) -> np.ndarray:
-        length = int(WINDOW_SECONDS * SAMPLE_RATE)
-        out = []
-        starts = [int(round(s * SAMPLE_RATE)) for s in starts_s]
-        for i in range(0, len(starts), BATCH):
-            chunk = [np.asarray(waveform[s:s + length], np.float32) for s in starts[i:i + BATCH]]
-            mels = np.stack([whisper_log_mel(np.pad(w, (0, length - len(w))))[:, : length // 160] for w in chunk])
-            states = np.asarray(self.model.encode(self.ct2.StorageView.from_array(mels), to_cpu=True))
-            for w, h in zip(chunk, states):
-                h = h[: max(1, int(len(w) / SAMPLE_RATE * FRAMES_PER_SECOND))]
-                out.append(np.concatenate([h.mean(0), h.std(0)]))
-        return np.stack(out).astype(np.float32) if out else np.zeros((0, FEATURES), np.float32)
+        return window_features(waveform, starts_s, self.encode)
+
+    def encode(self, mels: np.ndarray) -> np.ndarray:
+        return np.asarray(self.model.encode(self.ct2.StorageView.from_array(np.ascontiguousarray(mels)), to_cpu=True))
 
 
 RUNTIMES = {"ctranslate2 int8": Ctranslate2Features, "torch float32": lambda: WhisperFeatures("fp32"),

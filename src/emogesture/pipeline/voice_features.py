@@ -158,22 +158,32 @@ class WhisperFeatures:
         self.encoder = None
 
     def __call__(self, waveform: np.ndarray, starts_s: list[float] | np.ndarray) -> np.ndarray:
-        """A 16 kHz waveform ``[N]`` and the starts (s) of its 10-s windows -> features ``[W, 768]`` (each
-        window's encoder states over its speech: mean, then standard deviation)."""
+        """A 16 kHz waveform ``[N]`` and the starts (s) of its 10-s windows -> features ``[W, 768]``
+        (:func:`window_features`)."""
         if self.encoder is None:
             raise RuntimeError("this front end was let go: hear within `with whisper_features() as hearer`")
-        length = int(WINDOW_SECONDS * SAMPLE_RATE)
-        out = []
-        starts = [int(round(s * SAMPLE_RATE)) for s in starts_s]
-        for i in range(0, len(starts), BATCH):
-            chunk = [np.asarray(waveform[s:s + length], np.float32) for s in starts[i:i + BATCH]]
-            mels = np.stack([whisper_log_mel(np.pad(w, (0, length - len(w))))[:, : length // 160] for w in chunk])
-            with torch.inference_mode():
-                states = self.encoder(torch.from_numpy(mels).to(self.dtype)).float().numpy()
-            for w, h in zip(chunk, states):
-                h = h[: max(1, int(len(w) / SAMPLE_RATE * FRAMES_PER_SECOND))]
-                out.append(np.concatenate([h.mean(0), h.std(0)]))
-        return np.stack(out).astype(np.float32) if out else np.zeros((0, FEATURES), np.float32)
+        return window_features(waveform, starts_s, self.encode)
+
+    def encode(self, mels: np.ndarray) -> np.ndarray:
+        """Log-mel windows ``[B, 80, 1000]`` -> the encoder's last layer ``[B, 500, 384]`` float32."""
+        with torch.inference_mode():
+            return self.encoder(torch.from_numpy(mels).to(self.dtype)).float().numpy()
+
+
+def window_features(waveform: np.ndarray, starts_s: list[float] | np.ndarray, encode) -> np.ndarray:
+    """Each 10-s window of a 16 kHz waveform ``[N]`` starting at ``starts_s`` (a short last one padded with
+    silence), heard by ``encode`` (log-mel ``[B, 80, 1000]`` -> states ``[B, 500, D]``, :data:`BATCH` at a time)
+    and summed up over its speech as the states' mean, then their standard deviation: ``[W, 2 D]``."""
+    length = int(WINDOW_SECONDS * SAMPLE_RATE)
+    out = []
+    starts = [int(round(s * SAMPLE_RATE)) for s in starts_s]
+    for i in range(0, len(starts), BATCH):
+        chunk = [np.asarray(waveform[s:s + length], np.float32) for s in starts[i:i + BATCH]]
+        mels = np.stack([whisper_log_mel(np.pad(w, (0, length - len(w))))[:, : length // 160] for w in chunk])
+        for w, h in zip(chunk, encode(mels)):
+            h = h[: max(1, int(len(w) / SAMPLE_RATE * FRAMES_PER_SECOND))]
+            out.append(np.concatenate([h.mean(0), h.std(0)]))
+    return np.stack(out).astype(np.float32) if out else np.zeros((0, FEATURES), np.float32)
 
 
 def front_end_installed() -> bool:
