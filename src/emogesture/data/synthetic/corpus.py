@@ -46,8 +46,11 @@ from emogesture.errors import ConfigError, EmogestureError
 #: a wider turn toward the listeners, stroke apexes a little further off their onsets; 9: livelier strokes
 #: (more, larger, the forearm carrying the beat) whose apexes keep nearer their onsets, each slowed only as
 #: much as keeps its hand below MAX_HAND_SPEED, so the emotions keep their differences in speed; 10: version 9
-#: with the upper arm's share of a stroke a little smaller (its shoulder turns within the real range)
-CORPUS_VERSION = 10
+#: with the upper arm's share of a stroke a little smaller (its shoulder turns within the real range); 11: hands
+#: that travel between places in the gesture space between strokes (elbow, shoulder and collar; not locked to the
+#: syllables), stroke apexes that never land on one another, a forearm's inward turn that follows the elbow's
+#: bend as the elbow makes it
+CORPUS_VERSION = 11
 MARKER = ".emogesture-corpus.json"
 MANIFEST = "corpus.json"
 SPLIT_FILE = "train_test_split.csv"

@@ -15,6 +15,10 @@ local axis-angle rotations (Y-up, facing +Z, left arm along +X at rest):
   toward the midline, some raise the arm and open the elbow (``P_REACH``: an arm reaching out), some
   bring both hands together in front of the body (``P_TOGETHER``); amplitude, width and rate from
   emotion × speaker × jitter, hands from the speaker's handedness;
+* travel between places in the gesture space (``TRAVEL_*``): while the speaker talks, each hand moves to a new
+  place every fraction of a second to a second (elbow bend, the upper arm, the shoulder coming up and forward),
+  each move a minimum-jerk path at a bounded rate and not locked to the syllables, as preparations,
+  retractions and a hand moving to where the next idea sits are in real conversation;
 * hands (:mod:`.hands`): loosely curled at rest, each stroke forming a hand shape of the emotion and
   the speaker's habits (open, point, grip, fist, limp);
 * a body that turns and leans: the root turns slowly toward one of a few imagined listeners, switching
@@ -65,10 +69,18 @@ P_TURN = 0.5  # chance that a phrase is addressed to another listener
 ROOT_LEAN = 0.3  # share of the posture's lean taken by the root (the spine takes the rest)
 STROKE_AMPLITUDE = 1.1  # rad scale of a neutral stroke
 MAX_STROKE = 1.8  # rad: the largest stroke
-MAX_HAND_SPEED = 3.5  # m/s: a stroke's rise is slowed until the hand's fastest travel stays below this
+MAX_HAND_SPEED = 3.2  # m/s: a stroke's rise is slowed until the hand's fastest travel stays below this
 FOREARM, ARM = 0.28, 0.55  # m: the hand's distance from the elbow and from the shoulder (lever of each channel)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
 STROKE_GAIN = dict(elbow=1.6, flex=0.68, abduct=0.68)  # a stroke's extent per channel beyond its direction (the forearm carries the beat)
+# travel between places in the gesture space, not locked to syllables (preparations, retractions, a hand
+# moving to where the next idea sits): a new place every TRAVEL_EVERY s, reached in TRAVEL_MOVE s (both
+# divided by the take's speed), each channel's place drawn about the talking posture with sd TRAVEL_SPREAD rad
+TALK_BEND = 0.5  # rad more elbow bend while talking (times the hand's share of the lift)
+TRAVEL_EVERY = (0.2, 1.0)
+TRAVEL_MOVE = (0.35, 0.7)
+TRAVEL_SPREAD = dict(elbow=0.8, flex=0.08, abduct=0.06, collar_up=0.05, collar_fwd=0.12)
+TRAVEL_RATE = dict(elbow=3.0, flex=1.0, abduct=1.0, collar_up=0.5, collar_fwd=0.5)  # rad/s
 # the idle layer (never still): (amplitude rad, smoothing s) of band-limited noise per joint group
 IDLE = dict(spine=(0.035, 0.3), neck=(0.05, 0.25), collar=(0.035, 0.2), wrist=(0.1, 0.3), arm=(0.13, 0.35))
 SPINE, NECK, HEAD, JAW = (3, 6, 9), 12, 15, 22
@@ -105,6 +117,29 @@ def _hand_weights(speaker: Speaker, asymmetry: float) -> tuple[float, float]:
     if speaker.handedness == "both":
         return 1.0, 1.0 - 0.6 * asymmetry
     return (weak, 1.0) if speaker.handedness == "right" else (1.0, weak)
+
+
+def gesture_space_travel(t: np.ndarray, lift: np.ndarray, amp: float, speed: float,
+                         rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """One hand's travel between places in the gesture space: offsets ``[T]`` (rad) of the ``TRAVEL_SPREAD``
+    channels, each move a minimum-jerk path, times ``lift`` (the hands travel while the speaker talks)."""
+    channels = {k: np.zeros(len(t)) for k in TRAVEL_SPREAD}
+    place = dict.fromkeys(TRAVEL_SPREAD, 0.0)
+    start = rng.uniform(0.0, TRAVEL_EVERY[1]) / speed
+    end = t[-1] if len(t) else 0.0
+    while start < end:
+        new = {k: rng.normal(0.0, sd) * amp ** 0.5 for k, sd in TRAVEL_SPREAD.items()}
+        for k in ("collar_up", "collar_fwd"):  # the shoulder comes up and forward with the hand, never down or
+            new[k] = abs(new[k])  # back (a lowered shoulder would carry the hanging arm into the hip)
+        # a long way takes its time: no channel turns faster than TRAVEL_RATE on average over the move
+        move = max(rng.uniform(*TRAVEL_MOVE) / speed, *(abs(new[k] - place[k]) / TRAVEL_RATE[k] for k in new))
+        tau = np.clip((t - start) / move, 0.0, 1.0)
+        ramp = tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau ** 2)
+        for k in TRAVEL_SPREAD:
+            channels[k] += (new[k] - place[k]) * ramp
+        place = new
+        start += move + rng.uniform(*TRAVEL_EVERY) / speed
+    return {k: v * lift for k, v in channels.items()}
 
 
 def listener_yaw(active: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -149,7 +184,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     body["head_turn"] = body["head_turn"] + 0.06 * smooth_noise(rng, n, 1.0 * FPS)[:, 0]
     weights = _hand_weights(speaker, em.asymmetry)
     arm_keys = ("flex", "abduct", "elbow", "wflex", "wdev", "twist", "inward")
-    arms = [{k: np.zeros(n) for k in arm_keys} for _ in range(2)]
+    arms = [{k: np.zeros(n) for k in (*arm_keys, "collar_up", "collar_fwd")} for _ in range(2)]
     fingers = [hands.rest_channels(n, speaker.finger_curl, emotion.name, rng) for _ in range(2)]
     root = dict(yaw=listener_yaw(active, rng) + 0.02 * smooth_noise(rng, n, 1.0 * FPS)[:, 0],
                 roll=0.015 * smooth_noise(rng, n, 2.0 * FPS)[:, 0],  # weight shifts
@@ -163,8 +198,10 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
             a[k] += noise[:, i]
         a["flex"] += REST["flex"] + body["flex"] + 0.1 * weights[side] * lift * amp ** 0.5
         a["abduct"] += REST["abduct"] + body["abduct"] + 0.05 * weights[side] * lift * amp
-        a["elbow"] += REST["elbow"] + body["elbow"] + 0.4 * weights[side] * lift * amp ** 0.5
+        a["elbow"] += REST["elbow"] + body["elbow"] + TALK_BEND * weights[side] * lift * amp ** 0.5
         a["inward"] += INWARD_TALK * weights[side] * lift
+        for k, v in gesture_space_travel(t, lift, amp * weights[side], speed, rng).items():
+            a[k] += v
         if em.tremor:
             shake = smooth_noise(rng, n, 1.0, 3) - smooth_noise(rng, n, 4.0, 3) * 0.5
             a["wflex"] += em.tremor * 2 * shake[:, 0]
@@ -184,9 +221,10 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
     p_both = (0.6 if speaker.handedness == "both" else 0.2) * (1 - em.asymmetry)
     p_weak = 0.12 * (1 - em.asymmetry)
     dominant = 0 if speaker.handedness == "left" else 1
-    for apex in apexes:
+    last = -np.inf  # the previous stroke's apex: a jittered apex keeps half the spacing after it (two strokes
+    for apex in apexes:  # landing on one another would move the hand at twice a stroke's capped speed)
         rest, hold = rng.uniform() < P_REST, rng.uniform(0.0, MAX_HOLD) * (rng.uniform() < 0.4)
-        apex = float(np.clip(apex + rng.normal(0.0, APEX_JITTER), 0.0, t[-1]))
+        apex = float(np.clip(max(apex + rng.normal(0.0, APEX_JITTER), last + 0.5 * gap), 0.0, t[-1]))
         s = float(np.interp(apex, onsets, strength)) if onsets.size else 1.0
         a_k = min(STROKE_AMPLITUDE * amp * (0.55 + 0.45 * s) * float(np.exp(rng.normal(0.0, 0.25))), MAX_STROKE)
         u = rng.uniform()
@@ -216,6 +254,7 @@ def make_motion(wave: np.ndarray, emotion: Emotion, speaker: Speaker, jitter: Ta
             hands.stroke_shape(rng, emotion.name, habits)
         if rest:  # a chosen stroke time left out: no stroke (the draws above keep the take's others alike)
             continue
+        last = apex
         shape_bump = np.exp(-0.5 * (np.maximum(t - apex - hold, 0.0) / (2 * fall)
                                     + np.minimum(t - apex + 0.05, 0.0) / (1.5 * rise)) ** 2)
         for side in sides:
@@ -272,18 +311,19 @@ def _to_poses(body: dict, arms: list[dict], fingers: list[np.ndarray], root: dic
         flex = np.clip(a["flex"], -0.3, MAX_FLEX)
         down = Rotation.from_rotvec(np.stack([np.zeros(n), np.zeros(n), -(ARM_DOWN - abduct)], 1))
         forward = Rotation.from_rotvec(np.stack([-flex, np.zeros(n), np.zeros(n)], 1))
+        raised = np.maximum(flex - 0.7, 0.0) + np.maximum(abduct - 0.4, 0.0) + a["collar_up"]  # a raised shoulder too
+        cap = MAX_ELBOW - RAISED_REACH * raised  # approached softly (a hard clip snaps the forearm open)
+        bend = rate_limited(np.maximum(-0.1 * np.logaddexp(-a["elbow"] / 0.1, -cap / 0.1), 0.05),
+                            MAX_ELBOW_SPEED / FPS)
         # the upper arm turned about its own axis: a bent forearm swings in toward the midline (a straight
-        # arm hardly moves, so the turn follows the elbow's bend)
-        inward = (np.clip(a["inward"], -0.2, 1.1) * np.clip((a["elbow"] - 0.3) / 0.9, 0.0, 1.0)
+        # arm hardly moves, so the turn follows the elbow's bend as the elbow makes it)
+        inward = (np.clip(a["inward"], -0.2, 1.1) * np.clip((bend - 0.3) / 0.9, 0.0, 1.0)
                   * np.clip(flex / 0.3, 0.0, 1.0))  # and the arm's reach forward, so the hand stays in front
         turn = Rotation.from_rotvec(np.stack([inward, np.zeros(n), np.zeros(n)], 1))
         poses[:, SHOULDER[side]] = (forward * down * turn).as_rotvec() * m
         collar = smooth_noise(rng, n, IDLE["collar"][1] * FPS, 3) * IDLE["collar"][0]
-        poses[:, COLLAR[side]] = (np.stack([np.zeros(n), np.zeros(n), body["shrug"]], 1) + collar) * m
-        raised = np.maximum(flex - 0.7, 0.0) + np.maximum(abduct - 0.4, 0.0)
-        cap = MAX_ELBOW - RAISED_REACH * raised  # approached softly (a hard clip snaps the forearm open)
-        bend = rate_limited(np.maximum(-0.1 * np.logaddexp(-a["elbow"] / 0.1, -cap / 0.1), 0.05),
-                            MAX_ELBOW_SPEED / FPS)
+        poses[:, COLLAR[side]] = (np.stack([np.zeros(n), -a["collar_fwd"], body["shrug"] + a["collar_up"]], 1)
+                                  + collar) * m
         poses[:, ELBOW[side]] = np.stack([np.zeros(n), -bend, np.zeros(n)], 1) * m
         poses[:, WRIST[side]] = np.stack([a["twist"], 0.5 * a["wdev"], -0.6 * a["wflex"]], 1) * m
         poses[:, list(HAND[side])] = hands.finger_poses(fingers[side], m)
