@@ -73,10 +73,10 @@ MAX_HAND_SPEED = 3.2  # m/s: a stroke's rise is slowed until the hand's fastest 
 FOREARM, ARM = 0.28, 0.55  # m: the hand's distance from the elbow and from the shoulder (lever of each channel)
 P_REACH = 0.3  # share of strokes that open the elbow (an arm reaching out) instead of bending it
 STROKE_GAIN = dict(elbow=1.6, flex=0.68, abduct=0.68)  # a stroke's extent per channel beyond its direction (the forearm carries the beat)
+TALK_BEND = 0.5  # rad more elbow bend while talking (times the hand's share of the lift)
 # travel between places in the gesture space, not locked to syllables (preparations, retractions, a hand
 # moving to where the next idea sits): a new place every TRAVEL_EVERY s, reached in TRAVEL_MOVE s (both
 # divided by the take's speed), each channel's place drawn about the talking posture with sd TRAVEL_SPREAD rad
-TALK_BEND = 0.5  # rad more elbow bend while talking (times the hand's share of the lift)
 TRAVEL_EVERY = (0.2, 1.0)
 TRAVEL_MOVE = (0.35, 0.7)
 TRAVEL_SPREAD = dict(elbow=0.8, flex=0.08, abduct=0.06, collar_up=0.05, collar_fwd=0.12)
