@@ -15,8 +15,9 @@ REAL_VOICES="fr_june, it_carlo, ru_ivr"
 # the recipe's perception calibration (4.): those voices' means, and each emotion's mean of the train takes heard
 # through a telephone band for the read-out (telephone_means.sh)
 PERCEPTION=(--real-voices "$REAL_VOICES" --telephone-means)
-# both speech stages: each training window's augmented recordings made once, 16 variants (wave_variants.sh)
-SPEECH_VARIANTS=(--set wave_variants=16)
+# both speech stages: each training window's augmented recordings made once, 16 variants (wave_variants.sh),
+# every window at its own recording level (±10 dB)
+SPEECH_VARIANTS=(--set wave_variants=16 --set level_jitter_db=10)
 # the second stage: the pitch alone moved too (pitch_alone.sh), formants kept, as people's pitch differs
 # around their vocal tracts more than the corpus's speakers' does
 SPEECH_PITCH=(--set wave.pitch=0.5 --set wave.pitch_semitones=3)

@@ -74,7 +74,12 @@ def test_joins_are_no_rougher_than_offline_generation(pipe, talk):
     assert largest_jump(poses, trans) <= 1.75 * largest_jump(offline.poses, offline.trans)
     steps = np.linalg.norm(np.diff(joints(poses, trans), axis=0), axis=-1).max(-1)  # [T - 1]: frame t -> t + 1
     at_joins = steps[[start - 1 for start in starts[1:]]]
-    assert len(at_joins) > 50 and at_joins.max() <= np.quantile(steps, 0.99)  # no join above the motion's p99
+    offline_steps = np.linalg.norm(np.diff(joints(offline.poses, offline.trans), axis=0), axis=-1).max(-1)
+    # the joins' steps against the offline motion's: no larger than its largest, and their p90 no larger than its
+    # p90 (a hard cut gives 0.48 and 0.38 against 0.11 and 0.05, a 0.1-s blend of one candidate 0.23 and 0.15).
+    # Not against the stream's own p99: one of 80 ordinary frames lies above it in about half of all streams.
+    assert len(at_joins) > 50 and at_joins.max() <= offline_steps.max()
+    assert np.quantile(at_joins, 0.9) <= np.quantile(offline_steps, 0.9)
 
 
 def test_an_emotion_changed_mid_stream_shows_in_the_motion(pipe, talk):

@@ -94,6 +94,8 @@ def test_anger_then_sadness_on_a_minute_of_real_speech(real_minute, tmp_path):
         first, second = timeline.split(",")[0][2:], timeline.split(",")[1][3:]
         assert report[0]["windows"][0]["animated_emotion"] == {first: 1.0}
         assert report[0]["windows"][-1]["animated_emotion"] == {second: 1.0}
-    (angry, sad), (sad_first, angry_later) = found["0:anger,30:sadness"], found["0:sadness,30:anger"]
-    assert angry[0] > 1.5 * sad[0] and angry[1] > sad[1] + 0.05  # faster and higher wrists in the angry half
-    assert angry_later[0] > 1.5 * sad_first[0] and angry_later[1] > sad_first[1] + 0.05  # whichever half it is
+    (angry_first, sad_later), (sad_first, angry_later) = found["0:anger,30:sadness"], found["0:sadness,30:anger"]
+    # each half of the speech under either emotion: faster and higher wrists where it is angry (the halves say
+    # different things, so one half's anger is not measured against the other half's sadness)
+    for angry, sad in ((angry_first, sad_first), (angry_later, sad_later)):
+        assert angry[0] > 1.5 * sad[0] and angry[1] > sad[1] + 0.05

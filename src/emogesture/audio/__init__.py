@@ -17,7 +17,7 @@ from emogesture.audio.fbank import (
     num_fbank_frames,
     rolled_fbank,
 )
-from emogesture.audio.io import TARGET_SAMPLE_RATE, audio_seconds, check_speech, load_audio, resample
+from emogesture.audio.io import TARGET_SAMPLE_RATE, audio_seconds, check_speech, load_audio, resample, without_mean
 from emogesture.audio.mfcc import mfcc_from_log_mel
 from emogesture.audio.noise import (NoiseSuppression, digital_silence, dynamic_range_db, fill_digital_silence,
                                    suppress_noise, suppression_strength)
@@ -99,4 +99,5 @@ __all__ = [
     "seconds_to_fbank_frame",
     "stft_power",
     "window_starts",
+    "without_mean",
 ]

@@ -189,9 +189,14 @@ def load_audio(
     out = resample(mono, sr, target_sr)
     if out.size == 0:
         raise InputFileError(p, "contains no audio samples after resampling")
-    if remove_mean:
-        out = out - out.mean()
-    return np.ascontiguousarray(out, dtype=np.float32), target_sr
+    return without_mean(out) if remove_mean else np.ascontiguousarray(out, dtype=np.float32), target_sr
+
+
+def without_mean(waveform: np.ndarray) -> np.ndarray:
+    """A waveform ``[N]`` less its mean (taken in float64), as float32: what :func:`load_audio` does to a
+    recording, for a stretch cut out of one, so that it is heard as a recording of those samples would be."""
+    wave = np.asarray(waveform, np.float64)
+    return np.ascontiguousarray(wave - wave.mean(), dtype=np.float32)
 
 
 def audio_seconds(path: str | PathLike[str]) -> float:

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from emogesture.assets import bundled_model_file
-from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity
+from emogesture.audio import TARGET_SAMPLE_RATE, check_speech, load_audio, window_activity, without_mean
 from emogesture.checkpoints import LoadedModel, load_model
 from emogesture.provenance import trained_with
 from emogesture.config import from_dict
@@ -173,7 +173,7 @@ class GesturePipeline:
         """A recording of the speaker speaking without emotion (with ``span``, its seconds ``start`` to ``end``)
         -> 16 kHz waveform ``[N]``; a one-line error for one that cannot be a neutral reference (too short,
         silent; :func:`check_reference`)."""
-        wave, _ = load_audio(path)
+        wave, _ = load_audio(path, remove_mean=span is None)
         if span is not None:
             start, end = span
             seconds = len(wave) / TARGET_SAMPLE_RATE
@@ -181,6 +181,7 @@ class GesturePipeline:
                 raise InputFileError(path, f"{seconds:.1f} s long; the neutral span {start:g}-{end:g} s lies beyond "
                                      "its end")
             wave = wave[int(round(start * TARGET_SAMPLE_RATE)):int(round(end * TARGET_SAMPLE_RATE))]
+            wave = without_mean(wave)  # heard as a recording of those seconds would be
         check_reference(wave, reference_name(path, span))
         return wave
 
