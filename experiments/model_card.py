@@ -315,11 +315,15 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     readers_text = word_readers_text(report / "word_readers" / "word_readers.json")
     if readers_text:  # the neutral reference's sentence speaks of the same readers
         readers_text += neutral_reference_text(report / "neutral_reference" / "neutral_reference.json")
-    band_text = ("" if not perception.get("band_means") else
-                 " Each emotion has one more mean for the read-out alone: of the training takes heard through a "
-                 "simulated telephone band, so that a recording through such a band is compared with training speech "
-                 "heard the same way (the telephone row below; no real telephone recording with a known emotion "
-                 "was at hand to check); it changes what is heard, not the trust or the motion.")
+    conditions = perception["info"].get("condition_means") or (["telephone"] if perception.get("band_labels") else [])
+    condition_words = {"telephone": "through a simulated telephone band", "quieter": "6-14 dB quieter",
+                       "noisy": "in white noise at 8-16 dB SNR"}
+    band_text = ("" if not conditions else
+                 f" Each emotion has {len(conditions)} more mean{'s' if len(conditions) > 1 else ''} for the read-out "
+                 "alone: of the training takes heard " + ", ".join(condition_words[c] for c in conditions)
+                 + ", so that a recording made so is compared with training speech heard the same way (the rows "
+                 "below; no real recording of them with a known emotion was at hand to check); it changes what is "
+                 "heard, not the trust or the motion.")
     seams_text = seams_paragraph(gesture["checks"])
     real_motion_text = real_motion_paragraph(report.parent / "motion_realism" / "motion_realism.json")
     level_text = level_paragraph(shift["rows"])

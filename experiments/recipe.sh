@@ -12,9 +12,9 @@ SPEECH_HARD=(--set wave_augment=0.75 --set wave.voice=0.6 --set wave.voice_semit
 # the studio voices of emogesture.data.real_speech.TRAINING_VOICES, real people reading without acted emotion:
 # the perception's calibration gives each emotion a mean of theirs too (4.)
 REAL_VOICES="fr_june, it_carlo, ru_ivr"
-# the recipe's perception calibration (4.): those voices' means, and each emotion's mean of the train takes heard
-# through a telephone band for the read-out (telephone_means.sh)
-PERCEPTION=(--real-voices "$REAL_VOICES" --telephone-means)
+# the recipe's perception calibration (4.): those voices' means, and each emotion's means of the train takes heard
+# through a telephone band (telephone_means.sh), quieter and in noise (condition_means.sh) for the read-out
+PERCEPTION=(--real-voices "$REAL_VOICES" --condition-means telephone,quieter,noisy)
 # both speech stages: each training window's augmented recordings made once, 16 variants (wave_variants.sh),
 # every window at its own recording level (±10 dB)
 SPEECH_VARIANTS=(--set wave_variants=16 --set level_jitter_db=10)

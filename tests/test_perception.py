@@ -241,7 +241,7 @@ def test_telephone_band_means_change_what_is_heard_and_nothing_else():
     assert EmotionPerception.from_state(*plain.to_state()).band_means is None
     broken, tensors = both.to_state()
     broken["band_labels"] = broken["band_labels"][:-1]
-    with pytest.raises(EmogestureError, match="7 telephone-band labels for telephone-band means of shape"):
+    with pytest.raises(EmogestureError, match="7 condition labels for condition means of shape"):
         EmotionPerception.from_state(broken, tensors)
 
 
@@ -262,14 +262,17 @@ def test_real_voice_latents_and_the_calibrations_refusal_of_an_unknown_voice(tmp
     with pytest.raises(EmogestureError, match="real voice 'es_allison': unknown; known: fr_june"):
         calibrate_perception_run(bundled_model_file("speech"), tmp_path / "no_cache", tmp_path / "out",
                                  real_voices=["es_allison"])
+    with pytest.raises(EmogestureError, match="condition 'loud': unknown; known: telephone, quieter, noisy"):
+        calibrate_perception_run(bundled_model_file("speech"), tmp_path / "no_cache", tmp_path / "out",
+                                 condition_means=["telephone", "loud"])
     assert not (tmp_path / "out").exists()
 
 
-def test_telephone_band_latents_hear_every_take_of_the_split_through_the_band(tmp_path):
+def test_condition_latents_hear_every_take_of_the_split_through_each_condition(tmp_path):
     import soundfile as sf
 
     from emogesture.assets import bundled_model_file
-    from emogesture.train.perception import telephone_band_latents
+    from emogesture.train.perception import CONDITIONS, condition_latents
     from emogesture.pipeline.speech import SpeechLatentEncoder
 
     t = np.arange(20 * 16000) / 16000
@@ -290,12 +293,21 @@ def test_telephone_band_latents_hear_every_take_of_the_split_through_the_band(tm
             return Split()
 
     encoder = SpeechLatentEncoder.from_run(bundled_model_file("speech"))
-    band, emotions = telephone_band_latents(encoder, Cache())
     clean = encoder.encode(hum, parts=("emotion",), hop_seconds=8.0)[0]
     n = len(clean.emotion)
-    assert emotions.tolist() == [3] * n + [0] * (len(emotions) - n) and len(emotions) > n
-    assert band.emotion.shape == (len(emotions), encoder.loaded.config.latent_dim) and np.isfinite(band.emotion).all()
-    assert not np.allclose(band.emotion[:n], clean.emotion, atol=1e-3)  # heard through the band, not as recorded
+    heard = {}
+    for condition in CONDITIONS:
+        band, emotions = condition_latents(encoder, Cache(), (condition,))
+        assert emotions.tolist() == [3] * n + [0] * (len(emotions) - n) and len(emotions) > n
+        assert band.emotion.shape == (len(emotions), encoder.loaded.config.latent_dim)
+        assert np.isfinite(band.emotion).all()
+        assert not np.allclose(band.emotion[:n], clean.emotion, atol=1e-3)  # heard so, not as recorded
+        heard[condition] = band.emotion
+    both, emotions = condition_latents(encoder, Cache(), ("telephone", "noisy"))  # one after the other
+    assert len(emotions) == 2 * len(heard["telephone"])
+    np.testing.assert_allclose(both.emotion[: len(heard["telephone"])], heard["telephone"], atol=1e-6)
+    again, _ = condition_latents(encoder, Cache(), ("quieter",))  # the levels drawn from the seed
+    np.testing.assert_array_equal(again.emotion, heard["quieter"])
 
 
 def test_auto_moves_a_real_voice_into_the_corpus_frame_of_the_emotion_heard():

@@ -41,7 +41,10 @@ def test_the_bundled_model_holds_the_recipe():
     expected["num_speakers"] = speech_file["config"]["num_speakers"]  # the cache's train speakers, at training
     assert speech_file["config"] == expected
     assert speech_file["extra"]["step"] == speech_stage.steps
-    heard = speech_file["extra"]["emotion_perception"].get("heard")  # the front end's read-out, with RAVDESS
+    perception = speech_file["extra"]["emotion_perception"]
+    assert perception["info"].get("condition_means", []) == recipe.perception.get("condition_means", [])
+    assert perception["info"].get("real_voices", []) == recipe.perception.get("real_voices", [])
+    heard = perception.get("heard")  # the front end's read-out, with RAVDESS
     if heard is not None:
         assert recipe.perception.get("front_end") == "whisper" and heard["info"]["labelled"]
         assert heard["info"].get("neutral_voices", []) == recipe.perception.get("front_end_neutral_voices", [])
@@ -98,7 +101,7 @@ stages:
     checkpoint_every: 1
     settings: {batch_size: 4, align_ddim_steps: 2, align_every: 1, prior_warmup_steps: 1,
                generation.num_inference_steps: 3}
-perception: {telephone_means: false, real_voices: []}
+perception: {condition_means: [], real_voices: []}
 labelled_speech: {}
 generation: {num_inference_steps: 2, seam_candidates: 1}
 """

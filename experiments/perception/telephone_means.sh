@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Telephone-band means in the perception's read-out: a speech model (BASE; for the report, the shipped one)
-# calibrated as the recipe does (recipe.sh, PERCEPTION: the studio voices' means and `--telephone-means`, each
-# emotion's mean of the train takes heard through a telephone band), its weights unchanged; then, beside BASE
+# calibrated with the studio voices' means (recipe.sh, REAL_VOICES) and `--condition-means telephone`, each
+# emotion's mean of the train takes heard through a telephone band, its weights unchanged; then, beside BASE
 # as calibrated before:
 #   - perception_shift.py on val (the val speakers' voices, never trained on, through changed recordings);
 #   - real_perception.py: the real recordings (never trained or calibrated on) at three gains.
@@ -16,7 +16,7 @@ source experiments/recipe.sh
 RUN=$WORK/telephone_means
 REPORT=experiments/perception/reports/telephone_means
 mkdir -p "$RUN" "$REPORT"
-speech_calibrated speech_calibrated "$BASE" "${PERCEPTION[@]}"
+speech_calibrated speech_calibrated "$BASE" --real-voices "$REAL_VOICES" --condition-means telephone
 [ -f "$REPORT/perception_base/perception_shift.md" ] || \
     .venv/bin/python experiments/perception_shift.py "$BASE" "$CACHE" "$REPORT/perception_base" val
 [ -f "$REPORT/perception_telephone_means/perception_shift.md" ] || \

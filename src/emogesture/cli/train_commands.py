@@ -83,9 +83,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--real-voices", type=_names, default=[], metavar="NAME,...",
                    help="real training voices (e.g. fr_june,it_carlo,ru_ivr) given each of the synthetic corpus's "
                         "emotions, each emotion of theirs read by its own mean beside the corpus's")
-    p.add_argument("--telephone-means", action="store_true",
-                   help="also read each emotion by its mean of the train takes heard through a telephone band "
-                        "(the read-out only; the trust and the latents animated are unchanged)")
+    p.add_argument("--condition-means", type=_names, default=[], metavar="CONDITION,...",
+                   help="also read each emotion by its means of the train takes heard through these recording "
+                        "conditions: telephone (a telephone band), quieter (6-14 dB), noisy (white noise, 8-16 dB "
+                        "SNR) (the read-out only; the trust and the latents animated are unchanged)")
     p.set_defaults(func=run_calibrate_speech)
     p = _calibrate_parser(csub, "style", "the gesture model's fallback style for unfamiliar voices (--emotion auto)",
                           "gesture model (run folder or .json)", "the copy of the model with its fallback style",
@@ -193,14 +194,14 @@ def run_calibrate_speech(args: argparse.Namespace) -> int:
     from emogesture.train.perception import calibrate_perception_run
 
     p = calibrate_perception_run(args.model, args.data, args.out, args.split, args.quantile, args.overwrite,
-                                 real_voices=args.real_voices, telephone_means=args.telephone_means)
+                                 real_voices=args.real_voices, condition_means=args.condition_means)
     print(f"emotion perception calibrated: means and spread of {p.info['train_windows']} train windows; thresholds "
           f"emotion {p.emotion.threshold:.3f}, voice {p.voice.threshold:.3f} (quantile {p.info['quantile']:g} of "
           f"{p.info['held_out_windows']} {args.split} windows), read-out temperature {p.temperature:.2f}"
           + (f"; the real voices {', '.join(args.real_voices)} given each emotion ({p.info['real_windows']} windows)"
              if args.real_voices else "")
-          + (f"; each emotion heard through a telephone band ({p.info['band_windows']} train windows)"
-             if args.telephone_means else "") + ": "
+          + (f"; each emotion heard {', '.join(args.condition_means)} ({p.info['band_windows']} train windows)"
+             if args.condition_means else "") + ": "
           f"{args.out / 'model.json'}")
     return 0
 

@@ -54,15 +54,17 @@ real voices' mean has its emotion latent moved by the offset from that mean to t
 emotion (:meth:`EmotionPerception.in_corpus_frame`), so the gesture model gets the latent of the emotion heard
 in a place it learned, not the real voice's own.
 
-A telephone band (below 300 Hz and above 3.4 kHz taken away) moves every window's emotion latent; the
-corpus's emotion means alone then read held-out voices played through a simulated telephone band
-(:func:`emogesture.audio.wave_augment.telephone`) right less often than the same voices as recorded. A calibration with ``--telephone-means`` gives each
-emotion one more mean, of the training takes heard through a telephone band (:func:`telephone_band_latents`),
-which only the read-out uses (:meth:`EmotionPerception.read_range`: the head plus the posterior summed over
-each emotion's means, within the same threshold). The trust, the neutral mean and the latents ``auto``
-animates stay the corpus's: such a recording is heard better, not animated differently
-(`experiments/perception/README.md`, "Telephone-band means in the read-out"; measured on that simulated band
-only, as no real telephone recording with a known emotion is at hand).
+A telephone band (below 300 Hz and above 3.4 kHz taken away) moves every window's emotion latent, and so do a
+quieter recording and one in noise; the corpus's emotion means alone then read held-out voices played through
+such conditions right less often than the same voices as recorded. A calibration with ``--condition-means``
+gives each emotion one more mean per condition, of the training takes heard through it
+(:func:`emogesture.train.perception.condition_latents`: a simulated telephone band, 6-14 dB quieter, white
+noise at 8-16 dB SNR), which only the read-out uses (:meth:`EmotionPerception.read_range`: the head plus the
+posterior summed over each emotion's means, within the same threshold; the fields ``band_labels`` and
+``band_means`` hold them). The trust, the neutral mean and the latents ``auto`` animates stay the corpus's: such a
+recording is heard better, not animated differently (`experiments/perception/README.md`, "Telephone-band means
+in the read-out" and "Condition means"; measured on simulated conditions only, as no real recording of them
+with a known emotion is at hand).
 """
 
 from __future__ import annotations
@@ -206,7 +208,8 @@ class EmotionPerception:
     info: dict  # how it was measured (splits, windows, quantile)
     temperature: float = 1.0  # divides the read-out's summed log-probabilities within the range (read)
     #: the emotion of each of ``band_means``: each emotion's mean of the training windows heard through a
-    #: telephone band, which only the read-out uses (module docstring); empty without them
+    #: recording condition (a telephone band, quieter, in noise), which only the read-out uses (module
+    #: docstring); empty without them
     band_labels: list[str] = field(default_factory=list)
     band_means: np.ndarray | None = None  # [B, D]
     #: how many of ``voice.means`` are the training corpus's speakers (the real speakers' follow); None: all
@@ -219,7 +222,7 @@ class EmotionPerception:
         return np.minimum(self.emotion.trust(emotion), self.voice.trust(style))
 
     def read_range(self) -> LatentRange:
-        """The emotion range the read-out uses: :attr:`emotion` with the telephone band's means beside its own
+        """The emotion range the read-out uses: :attr:`emotion` with the condition means beside its own
         (the same spread and threshold); :attr:`emotion` itself without them."""
         if self.band_means is None or not len(self.band_labels):
             return self.emotion
@@ -227,7 +230,7 @@ class EmotionPerception:
 
     def summed(self, emotion: np.ndarray, logits: np.ndarray) -> np.ndarray:
         """The head's log-probabilities plus the emotion means' log-posteriors, ``[W, 8]`` over ``EMOTIONS``
-        (an emotion with several means, the real voices' and the telephone band's: their posteriors summed;
+        (an emotion with several means, the real voices' and the conditions': their posteriors summed;
         one the calibration never saw has no mean: ``-inf``), from emotion latents ``[W, D]`` and head logits
         ``[W, 8]``; neither tempered nor renormalised."""
         means = np.full((len(logits), len(EMOTIONS)), -np.inf)
@@ -328,8 +331,8 @@ class EmotionPerception:
         if band is not None:
             band = np.asarray(band, np.float64)
             if band.ndim != 2 or band.shape[1:] != emotion.means.shape[1:] or len(band) != len(labels):
-                raise EmogestureError(f"emotion perception: {len(labels)} telephone-band labels for telephone-band "
-                                      f"means of shape {band.shape}; the emotion means are {emotion.means.shape}")
+                raise EmogestureError(f"emotion perception: {len(labels)} condition labels for condition means of "
+                                      f"shape {band.shape}; the emotion means are {emotion.means.shape}")
         heard = LinearReadout.from_state(record["heard"], arrays) if record.get("heard") else None
         return cls(list(record["labels"]), emotion, voice, dict(record.get("info", {})),
                    float(record.get("temperature", 1.0)), labels, band, record.get("corpus_voices"), heard)

@@ -1,7 +1,7 @@
 """Calibrating a speech model's emotion perception (:mod:`emogesture.models.perception`): class means and spread
 on the training windows, trust thresholds and the read-out's temperature on held-out windows, optionally the
-means of real voices given the corpus's emotions and of training takes heard through a telephone band
-(``emogesture calibrate speech``)."""
+means of real voices given the corpus's emotions and of training takes heard through recording conditions (a
+telephone band, quieter, in noise; ``emogesture calibrate speech``)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from emogesture.audio import load_audio
-from emogesture.audio.wave_augment import telephone
+from emogesture.audio.wave_augment import add_noise, telephone
 from emogesture.checkpoints import check_model_output, load_model, save_model, stored_weights_dtype
 from emogesture.provenance import refuse_trained_split, trained_splits
 from emogesture.data.cache import open_cache
@@ -26,6 +26,10 @@ from emogesture.types import EMOTIONS
 
 TRUST_QUANTILE = 0.99
 REAL_STRETCHES = 10  # per real voice, when the perception learns real voices' emotions
+#: the recording conditions the train takes can be heard through for the read-out's condition means
+#: (:func:`condition_latents`): a telephone band (300-3400 Hz, 8 kHz, mu-law), a recording 6-14 dB quieter and
+#: one in white noise at 8-16 dB SNR (each take's level and SNR drawn)
+CONDITIONS = ("telephone", "quieter", "noisy")
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
@@ -96,14 +100,14 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
                              split: str = "val", quantile: float = TRUST_QUANTILE, overwrite: bool = False,
                              real_voices: list[str] | tuple[str, ...] = (),
                              real_stretches: int = REAL_STRETCHES,
-                             telephone_means: bool = False) -> EmotionPerception:
+                             condition_means: list[str] | tuple[str, ...] = ()) -> EmotionPerception:
     """Write a copy of the speech model of ``run`` to ``out`` with its emotion perception: means and
     spread from the cache's ``train`` windows, the threshold from ``split`` (which the model must not
     have trained on; its run records the training splits). With ``real_voices`` (names of
     :data:`emogesture.data.real_speech.TRAINING_VOICES`), also means of those real voices given each of the
     synthetic corpus's emotions (``real_stretches`` 10-s stretches of each; module docstring). With
-    ``telephone_means``, also each emotion's mean of the ``train`` takes heard through a telephone band, for the
-    read-out only (:func:`telephone_band_latents`)."""
+    ``condition_means`` (names of :data:`CONDITIONS`), also each emotion's mean of the ``train`` takes heard
+    through each of those recording conditions, for the read-out only (:func:`condition_latents`)."""
     if not 0.5 <= quantile < 1.0:
         raise EmogestureError(f"quantile {quantile}: must be in [0.5, 1)")
     if split in ("train", "test"):
@@ -111,6 +115,9 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     unknown = [v for v in real_voices if v not in TRAINING_VOICES]
     if unknown:
         raise EmogestureError(f"real voice {unknown[0]!r}: unknown; known: {', '.join(TRAINING_VOICES)}")
+    unknown = [c for c in condition_means if c not in CONDITIONS]
+    if unknown:
+        raise EmogestureError(f"condition {unknown[0]!r}: unknown; known: {', '.join(CONDITIONS)}")
     check_model_output(out, overwrite)
     loaded = load_model(run, "speech")
     trained_on = trained_splits(loaded)
@@ -131,14 +138,16 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
                                   f"cache's corpus is not one ({e})") from None
         real, real_emotions = real_voice_latents(encoder, list(real_voices), real_stretches, scale)
     band = band_emotions = None
-    if telephone_means:
-        band, band_emotions = telephone_band_latents(encoder, cache)
+    if condition_means:
+        band, band_emotions = condition_latents(encoder, cache, tuple(condition_means))
     perception = fit_perception(train, windows.emotion, windows.speaker_id, held, quantile,
                                 held_out_emotions=held_emotions, real=real, real_emotions=real_emotions,
                                 band=band, band_emotions=band_emotions)
     perception.info.update(split=split, trained_on=trained_on)
     if real_voices:
         perception.info.update(real_voices=list(real_voices), real_stretches=int(real_stretches))
+    if condition_means:
+        perception.info["condition_means"] = list(condition_means)
     # the weights file a gesture model trained on this network names (the file's checksum changes here)
     before = (loaded.metadata.emotion_perception or {}).get("info") or {}
     perception.info["calibrated_from"] = before.get("calibrated_from", loaded.weights_sha256)
@@ -149,20 +158,27 @@ def calibrate_perception_run(run: str | PathLike[str], cache_dir: str | PathLike
     return perception
 
 
-def telephone_band_latents(encoder: SpeechLatentEncoder, cache, split: str = "train",
-                           hop_seconds: float = 8.0) -> tuple[EncodedWindows, np.ndarray]:
-    """Every take of a cache's ``split`` heard through a telephone band
-    (:func:`emogesture.audio.wave_augment.telephone`: 300–3400 Hz, 8 kHz, μ-law), in 10-s windows every
-    ``hop_seconds`` -> their windows' emotion latents and logits, and each window's emotion ``[N]``."""
+def condition_latents(encoder: SpeechLatentEncoder, cache, conditions: tuple[str, ...] = ("telephone",),
+                      split: str = "train", hop_seconds: float = 8.0,
+                      seed: int = 0) -> tuple[EncodedWindows, np.ndarray]:
+    """Every take of a cache's ``split`` heard through each of ``conditions`` (:data:`CONDITIONS`; a quieter or
+    noisy take's level or SNR drawn from ``seed``), in 10-s windows every ``hop_seconds`` -> their windows'
+    emotion latents and logits, and each window's emotion ``[N]``."""
     root = Path(cache.manifest["root"])
+    rng = np.random.default_rng(seed)
+    change = {"telephone": telephone,
+              "quieter": lambda w: w * 10 ** (-rng.uniform(6.0, 14.0) / 20),
+              "noisy": lambda w: add_noise(w, rng, rng.uniform(8.0, 16.0), "white")}
     encoded, emotions = [], []
     takes = cache.split(split).take_emotions()
-    for take, emotion in tqdm(takes.items(), total=len(takes), desc="train takes through a telephone band",
-                              unit="take", disable=None):
-        wave, _ = load_audio(root / "wave16k" / f"{take}.wav")  # a clear one-line error when it is missing
-        enc = encoder.encode(np.asarray(telephone(wave), np.float32), hop_seconds=hop_seconds, parts=("emotion",))[0]
-        encoded.append(enc)
-        emotions += [emotion] * len(enc.emotion)
+    for condition in conditions:
+        for take, emotion in tqdm(takes.items(), total=len(takes), desc=f"train takes heard {condition}",
+                                  unit="take", disable=None):
+            wave, _ = load_audio(root / "wave16k" / f"{take}.wav")  # a clear one-line error when it is missing
+            heard = np.asarray(change[condition](wave), np.float32)
+            enc = encoder.encode(heard, hop_seconds=hop_seconds, parts=("emotion",))[0]
+            encoded.append(enc)
+            emotions += [emotion] * len(enc.emotion)
     return concat_windows(encoded), np.asarray(emotions)
 
 

@@ -180,7 +180,7 @@ def build_bundle(recipe: Recipe, cache: str | PathLike[str], run: str | PathLike
     perception = recipe.perception
     if not (run / "speech_calibrated" / "model.json").exists():
         calibrate_perception_run(speech, cache, run / "speech_calibrated",
-                                 telephone_means=bool(perception.get("telephone_means")),
+                                 condition_means=tuple(perception.get("condition_means", ())),
                                  real_voices=tuple(perception.get("real_voices", ())))
     if perception.get("front_end") and labelled is not None and not (run / "speech_heard" / "model.json").exists():
         from emogesture.train.heard_readout import calibrate_heard_run
