@@ -84,7 +84,9 @@ def test_a_broken_recipe_is_one_line_naming_the_file(tmp_path):
                           ("stages: [{name: a, model: speech, step: 1}]", "stage 'a'"),
                           ("stages: 3", "a list of stages"), ("stages: [", "not valid YAML"),
                           ("stages: []\nperception: {front_end: whisper, front_end_neutral_voices: [words_en]}",
-                           "words_en not among the training voices")):
+                           "words_en not among the training voices"),
+                          ("stages: []\nperception: {condition_means: [telephone, loud]}",
+                           "perception.condition_means: loud not among the conditions")):
         bad.write_text(text)
         with pytest.raises(InputFileError, match=message) as e:
             load_recipe(bad)

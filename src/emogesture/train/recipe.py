@@ -112,6 +112,12 @@ def load_recipe(path: str | PathLike[str]) -> Recipe:
     if unknown:
         raise InputFileError(path, f"perception.front_end_neutral_voices: {', '.join(map(str, unknown))} not among "
                                    f"the training voices ({', '.join(TRAINING_VOICES)})")
+    from emogesture.train.perception import CONDITIONS
+
+    unknown = [c for c in perception.get("condition_means", ()) if c not in CONDITIONS]
+    if unknown:
+        raise InputFileError(path, f"perception.condition_means: {', '.join(map(str, unknown))} not among the "
+                                   f"conditions ({', '.join(CONDITIONS)})")
     return Recipe(tuple(stages), perception, dict(data.get("labelled_speech") or {}), dict(data.get("generation") or {}))
 
 
