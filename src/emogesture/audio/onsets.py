@@ -24,8 +24,8 @@ from emogesture.audio.stft import as_float_tensor, stft_power
 __all__ = ["onset_strength", "detect_onsets", "peak_pick", "frame_energy", "window_activity"]
 
 
-def _mono(waveform: np.ndarray | torch.Tensor) -> torch.Tensor:
-    x = as_float_tensor(waveform)
+def _mono(waveform: np.ndarray | torch.Tensor, dtype: torch.dtype | None = None) -> torch.Tensor:
+    x = as_float_tensor(waveform, dtype)
     if x.ndim != 1:
         raise ValueError(f"waveform must be mono [N], got shape {tuple(x.shape)}")
     return x
@@ -143,13 +143,16 @@ def frame_energy(waveform: np.ndarray | torch.Tensor, sample_rate: int, fps: flo
     Frame ``t`` covers samples ``[round(t N / T), round((t + 1) N / T))`` — an even partition of the whole
     waveform, each part ``≈ sample_rate / fps`` samples long.
     """
-    x = _mono(waveform).cpu().to(torch.float64).numpy()
+    single = getattr(waveform, "dtype", None) in (np.float32, torch.float32)  # squared in float64 all the same
+    x = _mono(waveform, torch.float32 if single else None).cpu().numpy()
     n = x.size
     t = int(round(n / float(sample_rate) * fps))
     if t == 0:
         return np.zeros(0, dtype=np.float32)
     edges = np.round(np.arange(t + 1) * (n / t)).astype(np.int64)
-    csum = np.concatenate([[0.0], np.cumsum(x * x)])
+    csum = np.empty(n + 1)  # float64, its running sums written in place (10 min of audio: 77 MB an array)
+    csum[0] = 0.0
+    np.cumsum(np.square(x, dtype=np.float64), out=csum[1:])
     counts = np.diff(edges)
     sums = csum[edges[1:]] - csum[edges[:-1]]
     rms = np.sqrt(np.maximum(sums, 0.0) / np.maximum(counts, 1))
