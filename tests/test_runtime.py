@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import platform
-import subprocess
-import sys
 from dataclasses import replace
 
 import pytest
@@ -116,32 +113,3 @@ def test_the_bundled_model_switched_off_moves_as_switched_on_within_bf16_drift()
         runs.append(joints(pipe.generate(wave, seed=0, generation=replace(pipe.generation, seam_candidates=1))[0]))
     mm = np.linalg.norm(runs[0] - runs[1], axis=-1) * 1000
     assert mm.mean() < 2 and mm.max() < 20, (mm.mean(), mm.max())
-
-
-@pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ver()[0] != "glibc", reason="glibc's malloc only")
-def test_a_one_shot_command_keeps_freed_memory_for_its_next_arrays():
-    """After keep_freed_memory, a large array made again after others were freed reuses their pages instead of
-    faulting fresh ones in (measured in a child process: the setting is process-wide)."""
-    code = """
-import resource
-import torch
-from emogesture.memory import keep_freed_memory
-
-def faults_of_an_array_made_again():
-    a, b = torch.ones(6_000_000, dtype=torch.float64), torch.ones(6_000_000, dtype=torch.float64)  # 48 MB each
-    del a, b
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-    c = torch.ones(6_000_000, dtype=torch.float64)
-    del c
-    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
-
-plain = faults_of_an_array_made_again()
-kept = keep_freed_memory()
-faults_of_an_array_made_again()  # the first arrays from the heap
-print(kept, plain, min(faults_of_an_array_made_again() for _ in range(3)))
-"""
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    kept, plain, after = out[0] == "True", int(out[1]), int(out[2])
-    assert kept
-    assert plain > 5000  # 48 MB in 4-kB pages, faulted in again (torch asks for no huge pages)
-    assert after < plain / 10

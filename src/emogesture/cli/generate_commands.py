@@ -83,9 +83,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_generate(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from emogesture.memory import keep_freed_memory
-
-    keep_freed_memory()  # before torch and the audio take their memory
     from emogesture.errors import EmogestureError
     from emogesture.pipeline.animate import AnimationRequest
     from emogesture.pipeline.batch import animate_files, batch_summary, speech_files
