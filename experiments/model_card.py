@@ -27,6 +27,11 @@ REBUILD = ("make model RAVDESS=/path/to/audio_speech_actors_01-24   # = bash exp
 RAVDESS_VAL, RAVDESS_TEST = "actors 2, 3 and 12", "actors 8, 17 and 19"
 
 
+def training_minutes(lines: list[str]) -> int:
+    """The trainings' total wall time in minutes, from the times file's lines (``name: SECONDS s``)."""
+    return round(sum(float(line.split(":")[1].split()[0]) for line in lines) / 60)
+
+
 def rhythm_paragraph(rows: dict, checks: dict) -> str:
     """What the test report's rhythm checks say about the strokes' timing: they follow the
     speech when the gain reaches 0.6 of the ground truth's and another window's timing stream takes it
@@ -360,7 +365,7 @@ Trained on {trained_on} (`emogesture corpus --speakers 30`, version {corpus_vers
 
 Training wall time on 2 CPU cores: {"; ".join(card["training_seconds"])}.
 
-Rebuild from scratch (about 85 minutes on 2 cores, 75 of them training):
+Rebuild from scratch (its trainings alone took {training_minutes(card['training_seconds'])} minutes on 2 cores; making the corpus and scoring add to it):
 
 ```bash
 {REBUILD}

@@ -47,6 +47,30 @@ def test_whole_process_benchmark_runs_and_leaves_no_scratch_folder(tmp_path):
     assert not list(tmp_path.glob("emogesture-bench-*"))
 
 
+def test_the_comparison_with_another_checkout_alternates_fresh_processes(tmp_path):
+    """bench/against.py with this checkout as the other one, one round on 1-s and 2-s clips: both codes timed
+    at both lengths, the ratios made of their medians, the scratch folder gone."""
+    import json
+    import os
+    import subprocess
+
+    env = {**os.environ, "TMPDIR": str(tmp_path), "OMP_NUM_THREADS": "1"}
+    out = tmp_path / "against.json"
+    done = subprocess.run([sys.executable, str(BENCH / "against.py"), str(BENCH.parent), "--rounds", "1", "--lengths",
+                           "1,2", "--json", str(out)], env=env, capture_output=True, text=True, check=True)
+    result = json.loads(out.read_text())
+    assert set(result["codes"]) == {"this", "other"} and result["lengths_s"] == [1.0, 2.0]
+    for code in result["codes"].values():
+        assert all(len(walls) == 1 and walls[0] > 0 for walls in code["wall_s"].values())
+        assert code["marginal_rtf_of_medians"] == round(code["median_s"]["2.0"] - code["median_s"]["1.0"], 5)
+    this, other = result["codes"]["this"], result["codes"]["other"]
+    assert result["ratios"]["1_s_clip"] == round(this["median_s"]["1.0"] / other["median_s"]["1.0"], 3)
+    assert "this / other, 1 rounds" in done.stdout
+    assert not list(tmp_path.glob("emogesture-bench-*"))
+    bad = subprocess.run([sys.executable, str(BENCH / "against.py"), str(tmp_path)], capture_output=True, text=True)
+    assert bad.returncode != 0 and "give the root of an emogesture checkout" in bad.stderr
+
+
 def test_augmentation_benchmark_times_every_transform_and_both_recipe_stages(monkeypatch):
     monkeypatch.syspath_prepend(str(BENCH))
     sys.modules.pop("augment", None)
