@@ -19,6 +19,7 @@ from emogesture.checkpoints import write_text_atomic
 from emogesture.data.synthetic.corpus import CORPUS_VERSION, MARKER
 from emogesture.eval.real_speech import heard_text
 from emogesture.pipeline.generate import HOP_SECONDS
+from emogesture.train.perception import NOISE_SNR_DB, QUIETER_DB
 from emogesture.types import EMOTIONS
 
 REBUILD = ("make model RAVDESS=/path/to/audio_speech_actors_01-24   # = bash experiments/bundled_model.sh "
@@ -321,8 +322,9 @@ def main(bundle: str, report: str, times: str, cache_dir: str) -> None:
     if readers_text:  # the neutral reference's sentence speaks of the same readers
         readers_text += neutral_reference_text(report / "neutral_reference" / "neutral_reference.json")
     conditions = perception["info"].get("condition_means") or (["telephone"] if perception.get("band_labels") else [])
-    condition_words = {"telephone": "through a simulated telephone band", "quieter": "6-14 dB quieter",
-                       "noisy": "in white noise at 8-16 dB SNR"}
+    condition_words = {"telephone": "through a simulated telephone band",
+                       "quieter": "{:g}-{:g} dB quieter".format(*QUIETER_DB),
+                       "noisy": "in white noise at {:g}-{:g} dB SNR".format(*NOISE_SNR_DB)}
     band_text = ("" if not conditions else
                  f" Each emotion has {len(conditions)} more mean{'s' if len(conditions) > 1 else ''} for the read-out "
                  "alone: of the training takes heard " + ", ".join(condition_words[c] for c in conditions)

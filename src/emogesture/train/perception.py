@@ -27,9 +27,11 @@ from emogesture.types import EMOTIONS
 TRUST_QUANTILE = 0.99
 REAL_STRETCHES = 10  # per real voice, when the perception learns real voices' emotions
 #: the recording conditions the train takes can be heard through for the read-out's condition means
-#: (:func:`condition_latents`): a telephone band (300-3400 Hz, 8 kHz, mu-law), a recording 6-14 dB quieter and
-#: one in white noise at 8-16 dB SNR (each take's level and SNR drawn)
+#: (:func:`condition_latents`): a telephone band (300-3400 Hz, 8 kHz, mu-law), a recording quieter by
+#: :data:`QUIETER_DB` and one in white noise at :data:`NOISE_SNR_DB` (each take's level and SNR drawn)
 CONDITIONS = ("telephone", "quieter", "noisy")
+QUIETER_DB = (6.0, 14.0)  # dB below the take's own level, drawn uniformly
+NOISE_SNR_DB = (8.0, 16.0)  # white noise's signal-to-noise ratio, drawn uniformly
 
 
 def fit_perception(train: EncodedWindows, emotions: np.ndarray, speakers: np.ndarray, held_out: EncodedWindows,
@@ -167,8 +169,8 @@ def condition_latents(encoder: SpeechLatentEncoder, cache, conditions: tuple[str
     root = Path(cache.manifest["root"])
     rng = np.random.default_rng(seed)
     change = {"telephone": telephone,
-              "quieter": lambda w: w * 10 ** (-rng.uniform(6.0, 14.0) / 20),
-              "noisy": lambda w: add_noise(w, rng, rng.uniform(8.0, 16.0), "white")}
+              "quieter": lambda w: w * 10 ** (-rng.uniform(*QUIETER_DB) / 20),
+              "noisy": lambda w: add_noise(w, rng, rng.uniform(*NOISE_SNR_DB), "white")}
     encoded, emotions = [], []
     takes = cache.split(split).take_emotions()
     for condition in conditions:
